@@ -1,0 +1,46 @@
+# pfbench: two-command setup.  `make all` builds .venv and produces the quick artefacts;
+# `make test` builds .venv and runs the test suite.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.cache/numba
+export PFBENCH_CACHE_DIR ?= $(CURDIR)/.cache/pfbench
+export MPLBACKEND := Agg
+
+.PHONY: all venv test test-slow bench report mcu-tools clean
+
+all: $(STAMP)
+	$(BIN)/pfbench reproduce --all
+	$(BIN)/pfbench report
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow" tests
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow tests
+
+# Benchmarks: pytest-benchmark suite plus `pfbench bench` (JSON under results/bench/).
+# The `particles` comparison runs in its own environment (.venv-particles) because
+# `particles` pins an older NumPy; see scripts/bench_particles.py.
+bench: $(STAMP)
+	$(BIN)/python -m pytest -q benchmarks --benchmark-enable --benchmark-json=results/bench/pytest-benchmark.json
+	$(BIN)/pfbench bench
+
+report: $(STAMP)
+	$(BIN)/pfbench report
+
+# Cortex-M4 cross toolchain and emulator (issue: emulate the filter); root works here.
+mcu-tools:
+	bash scripts/install_mcu_tools.sh
+
+clean:
+	rm -rf $(VENV) .cache build *.egg-info

@@ -1,0 +1,36 @@
+"""pfbench: benchmarking and reproducibility suite for particle filters and Kalman filters.
+
+Stable API::
+
+    import pfbench
+    model = pfbench.models.get("ob1")
+    traj = model.simulate(1000, seed=1)
+    res = pfbench.run_filter(model, traj.y, traj.u, method="bootstrap", n_particles=1000,
+                             backend="numba", seed=1)
+    pfbench.metrics.armse(res.estimates, traj.x)
+"""
+from importlib import metadata as _metadata
+
+from . import models
+from .errors import NumericalError, PfbenchError
+
+try:
+    __version__ = _metadata.version("pfbench")
+except _metadata.PackageNotFoundError:  # running from a source tree without install
+    __version__ = "0.0.0+src"
+
+
+def __getattr__(name):
+    # Lazy imports keep `import pfbench` (and the CLI's --help) fast.
+    if name in ("run_filter", "FilterResult"):
+        from .filters import api
+
+        return getattr(api, name)
+    if name in ("resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends"):
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(name)
+
+
+__all__ = ["models", "run_filter", "FilterResult", "PfbenchError", "NumericalError", "__version__"]

@@ -1,0 +1,287 @@
+"""The ``pfbench`` command line (click).
+
+Every user error ends in one line ``error: ...`` on stderr and exit code 2 (never a
+traceback); Ctrl-C ends with exit code 130. Subcommand groups of the subsystems
+(``pfbench mcu``, ``pfbench sweep``) live next to their code and are added here.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+
+import click
+
+from .errors import PfbenchError
+
+METHODS = ("bootstrap", "sir", "sis", "multipdf", "asir")
+BACKENDS = ("numpy", "numba")
+DTYPES = ("float64", "float32")
+RESAMPLING = ("systematic", "stratified", "multinomial", "residual", "residual_deterministic")
+
+
+def _one_line(msg: str) -> str:
+    return " ".join(str(msg).split())
+
+
+class PfbenchGroup(click.Group):
+    """A click group that reports usage errors as one line and exit code 2."""
+
+    def main(self, args=None, prog_name=None, **extra):  # noqa: D401
+        try:
+            rv = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
+        except click.exceptions.NoArgsIsHelpError as exc:
+            click.echo(exc.ctx.get_help() if exc.ctx else str(exc))
+            sys.exit(0)
+        except click.UsageError as exc:
+            hint = ""
+            if exc.ctx is not None:
+                hint = f" (see '{exc.ctx.command_path} --help')"
+            click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
+            sys.exit(2)
+        except click.exceptions.Exit as exc:
+            sys.exit(exc.exit_code)
+        except click.Abort:
+            click.echo("error: interrupted", err=True)
+            sys.exit(130)
+        except KeyboardInterrupt:
+            click.echo("error: interrupted", err=True)
+            sys.exit(130)
+        except click.ClickException as exc:
+            click.echo(f"error: {_one_line(exc.format_message())}", err=True)
+            sys.exit(2)
+        except (PfbenchError, ValueError) as exc:
+            click.echo(f"error: {_one_line(exc)}", err=True)
+            sys.exit(2)
+        if isinstance(rv, int):
+            sys.exit(rv)
+        sys.exit(0)
+
+
+def positive_int(name: str):
+    def cb(ctx, param, value):
+        if value is not None and value < 1:
+            raise click.BadParameter(f"must be >= 1, got {value}", param_hint=f"'--{name}'")
+        return value
+    return cb
+
+
+@click.group(cls=PfbenchGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="pfbench", prog_name="pfbench")
+def main():
+    """pfbench: particle and Kalman filter benchmarks and paper reproductions.
+
+    \b
+    Quick start:
+      pfbench list                      # the paper figures/tables we reproduce
+      pfbench reproduce fig5            # one recipe, quick mode (--full: paper scale)
+      pfbench run --model ob1 --method bootstrap --particles 1000 --steps 1000
+      pfbench info                      # CPU, cores, numba threading layer, versions
+    """
+
+
+# --------------------------------------------------------------------------- run
+def _model_params(pairs: tuple[str, ...]) -> dict:
+    out = {}
+    for item in pairs:
+        if "=" not in item:
+            raise click.BadParameter(f"expected KEY=VALUE, got {item!r}", param_hint="'--param'")
+        k, v = item.split("=", 1)
+        try:
+            out[k] = json.loads(v)
+        except ValueError:
+            out[k] = v
+    return out
+
+
+@main.command()
+@click.option("--model", "model_name", required=True, help="Registered model (see `pfbench info`).")
+@click.option("--method", type=click.Choice(METHODS), default="bootstrap", show_default=True)
+@click.option("--particles", type=int, default=1000, show_default=True, callback=positive_int("particles"),
+              help="N_p, total number of particles.")
+@click.option("--filters", type=int, default=1, show_default=True, callback=positive_int("filters"),
+              help="N_f, MultiPDF sub-filters.")
+@click.option("--steps", type=int, default=1000, show_default=True, callback=positive_int("steps"),
+              help="M, number of time steps to simulate.")
+@click.option("--resampling", type=click.Choice(RESAMPLING), default="systematic", show_default=True)
+@click.option("--ess-threshold", type=float, default=None, help="SIR: resample when N_eff < this.")
+@click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
+@click.option("--dtype", type=click.Choice(DTYPES), default="float64", show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--version", "model_version", type=int, default=None, help="Model version (ob3: 1..5).")
+@click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help="Model parameter (repeatable).")
+@click.option("--data", type=click.Path(dir_okay=False), default=None,
+              help="CSV log (time_s, y..., u...) to filter instead of a simulation.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def run(model_name, method, particles, filters, steps, resampling, ess_threshold, backend, dtype,
+        seed, model_version, params, data, as_json):
+    """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
+    import numpy as np
+
+    from . import metrics, models
+    from .filters.api import run_filter
+
+    kw = _model_params(params)
+    if model_version is not None:
+        kw["version"] = model_version
+    model = models.get(model_name, **kw)
+    if filters > particles:
+        raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
+                                 param_hint="'--filters'")
+    if data:
+        from .datalog import load_log
+
+        traj = load_log(data, model)
+    else:
+        traj = model.simulate(steps, seed=seed)
+    res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
+                     resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
+                     seed=seed)
+    have_truth = bool(np.all(np.isfinite(traj.x)))
+    out = {
+        "model": model_name, "method": method, "backend": backend, "dtype": dtype,
+        "n_particles": particles, "n_filters": filters, "n_steps": traj.n_steps, "seed": seed,
+        "resampling": resampling,
+        "armse": metrics.armse(res.estimates, traj.x) if have_truth else None,
+        "rmse": metrics.rmse(res.estimates, traj.x).tolist() if have_truth else None,
+        "loglik": res.loglik, "n_resampled": res.n_resampled,
+        "n_degenerate_steps": int(res.degenerate.sum()),
+        "elapsed_s": res.elapsed_s,
+        "ns_per_particle_step": res.elapsed_s * 1e9 / (particles * traj.n_steps),
+    }
+    if as_json:
+        click.echo(json.dumps(out))
+        return
+    for k, v in out.items():
+        if isinstance(v, float):
+            v = f"{v:.6g}"
+        click.echo(f"{k:>22}: {v}")
+
+
+# --------------------------------------------------------------------------- recipes
+@main.command("list")
+@click.option("--json", "as_json", is_flag=True)
+def list_cmd(as_json):
+    """List the registered recipes (ID, paper, what it reproduces, quick/full cost)."""
+    from .recipes import discover
+
+    reg = discover()
+    if as_json:
+        click.echo(json.dumps([{"id": r.id, "aliases": list(r.aliases), "paper": r.paper, "title": r.title,
+                                "quick_cost": r.quick_cost, "full_cost": r.full_cost,
+                                "needs": list(r.needs)} for r in reg.values()]))
+        return
+    if not reg:
+        click.echo("no recipes registered")
+        return
+    w = max(len(r.id) for r in reg.values())
+    click.echo(f"{'ID'.ljust(w)}  {'quick':>10}  {'full':>10}  title")
+    for r in reg.values():
+        alias = f" (alias: {', '.join(r.aliases)})" if r.aliases else ""
+        click.echo(f"{r.id.ljust(w)}  {r.quick_cost:>10}  {r.full_cost:>10}  {r.title}{alias}")
+
+
+@main.command()
+@click.argument("recipe_ids", nargs=-1)
+@click.option("--all", "run_all", is_flag=True, help="Run every registered recipe.")
+@click.option("--paper", default=None, help="With --all: only this paper's recipes.")
+@click.option("--full", is_flag=True, help="Paper scale (slow; shows a progress bar).")
+@click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
+@click.option("--data", type=click.Path(dir_okay=False, exists=True), default=None,
+              help="Run the recipe on a real log instead of a simulation (where supported).")
+@click.option("--option", "options", multiple=True, metavar="KEY=VALUE", help="Recipe option (repeatable).")
+@click.option("--quiet", is_flag=True)
+def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, options, quiet):
+    """Run recipe(s): `pfbench reproduce fig5`, `pfbench reproduce multipdf:fig3 --full`."""
+    from . import recipes
+
+    if run_all:
+        recs = [r for r in recipes.discover().values() if paper is None or r.paper == paper]
+    elif recipe_ids:
+        recs = [recipes.resolve(r) for r in recipe_ids]
+    else:
+        raise click.UsageError("name a recipe (see `pfbench list`) or pass --all")
+    opts = _model_params(options)
+    failed = []
+    for rec in recs:
+        if run_all and rec.needs and not _needs_met(rec.needs):
+            click.echo(f"-- {rec.id}: skipped (needs {', '.join(rec.needs)}; run `make mcu-tools`)")
+            continue
+        click.echo(f"== {rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
+        try:
+            ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root, data=data,
+                              quiet=quiet, options=opts)
+        except PfbenchError as exc:
+            if not run_all:
+                raise
+            failed.append(rec.id)
+            click.echo(f"error: {rec.id}: {_one_line(exc)}", err=True)
+            continue
+        click.echo(recipes.format_comparisons(ctx.comparisons))
+        for n in ctx.notes:
+            click.echo(f"note: {n}")
+        click.echo(f"-> {ctx.out_dir} ({len(ctx.outputs)} files, {ctx.extra['elapsed_s']:.1f} s)")
+    if failed:
+        raise PfbenchError(f"{len(failed)} recipe(s) failed: {', '.join(failed)}")
+
+
+def _needs_met(needs) -> bool:
+    for need in needs:
+        if need == "mcu-tools":
+            try:
+                from .mcu import toolchain
+            except ImportError:
+                return False
+            if not toolchain.available():
+                return False
+    return True
+
+
+@main.command()
+@click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
+def report(out_root):
+    """Regenerate results/REPORT.md from the provenance records."""
+    from .recipes import write_report
+
+    click.echo(f"wrote {write_report(out_root)}")
+
+
+# --------------------------------------------------------------------------- info / bench
+@main.command()
+@click.option("--json", "as_json", is_flag=True)
+def info(as_json):
+    """CPU, core count, numba threading layer, package versions, registered models."""
+    from . import models
+    from .provenance import host_info, numba_threading_layer, package_versions
+
+    data = {"host": host_info(), "numba_threading_layer": numba_threading_layer(),
+            "packages": package_versions(), "models": models.names()}
+    if as_json:
+        click.echo(json.dumps(data))
+        return
+    for k, v in data["host"].items():
+        click.echo(f"{k:>22}: {v}")
+    click.echo(f"{'numba threading layer':>22}: {data['numba_threading_layer']}")
+    for k, v in data["packages"].items():
+        click.echo(f"{k:>22}: {v}")
+    click.echo(f"{'models':>22}: {', '.join(data['models'])}")
+
+
+def _add_subsystem_commands() -> None:
+    for modname, attr in (("pfbench.bench", "bench"), ("pfbench.mcu.cli", "mcu"),
+                          ("pfbench.sweep.cli", "sweep")):
+        try:
+            mod = importlib.import_module(modname)
+        except ModuleNotFoundError as exc:
+            if exc.name == modname or (exc.name and modname.startswith(exc.name + ".")):
+                continue
+            raise
+        main.add_command(getattr(mod, attr))
+
+
+_add_subsystem_commands()
+
+if __name__ == "__main__":
+    main()

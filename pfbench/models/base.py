@@ -1,0 +1,203 @@
+"""The state-space model base class shared by both backends.
+
+A model is written **once**, as four vectorised NumPy functions over a block of particles.
+The NumPy backend calls them as they are; the numba backend compiles the very same functions
+with ``numba.njit`` (array expressions are fused into one loop, so they run as fast as
+hand-written loops). What a model needs for numba:
+
+* the four functions are ``@staticmethod`` s using only NumPy features numba supports
+  (arithmetic, ``np.cos``/``np.exp``/..., slicing, ``np.empty``/``np.zeros``, loops, ``@``);
+* every model parameter travels in the tuple returned by :meth:`StateSpaceModel.params`
+  (float scalars and float64 arrays; ints for switches), never through ``self``;
+* no Python objects, dicts or exceptions inside the functions;
+* helper functions they call are decorated with ``numba.extending.register_jitable``
+  (plain Python under NumPy, compiled under numba), like :func:`gaussian_loglik_diag`.
+
+Time-index convention (0-based ``t = 0..M-1`` for arrays; paper step ``k = t + 1``)::
+
+    x_{-1} ~ initial(...)                         # the prior p(x^(0))
+    x_t    = transition(x_{t-1}, u[t], t, v_t)    # x^(k) = f(x^(k-1), u^(k-1), k-1) + v
+    y_t    ~ p(y | x_t)  via log_likelihood(y[t], x_t, u[t], t)
+    y_t    = observe(x_t, u[t], t, n_t)           # simulation only
+
+so a model whose paper equation reads ``x^(k+1) = f(x^(k), k)`` uses ``t`` for ``k``.
+
+Minimal custom model (runs on both backends)::
+
+    import numpy as np
+    from pfbench.models import StateSpaceModel, register
+
+    @register("growth")
+    class Growth(StateSpaceModel):
+        n_x, n_y, n_noise = 1, 1, 1
+        def __init__(self, q=10.0, r=1.0):
+            self.q, self.r = q, r
+        def params(self):
+            return (self.q, self.r)
+        @staticmethod
+        def initial(rng, n, p):
+            return 0.1 + np.zeros((n, 1))
+        @staticmethod
+        def transition(x, u, t, noise, p):
+            return 0.5 * x + 25 * x / (1 + x * x) + 8 * np.cos(1.2 * t) + np.sqrt(p[0]) * noise
+        @staticmethod
+        def log_likelihood(y, x, u, t, p):
+            r = y[0] - x[:, 0] ** 2 / 20
+            return -0.5 * r * r / p[1] - 0.5 * np.log(2 * np.pi * p[1])
+        @staticmethod
+        def observe(x, u, t, noise, p):
+            return x ** 2 / 20 + np.sqrt(p[1]) * noise
+"""
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+
+import numpy as np
+from numba.extending import register_jitable
+
+LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A simulated (or loaded) trajectory.
+
+    Attributes
+    ----------
+    x : (n_steps, n_x) true states x_t, t = 0..M-1 (paper k = 1..M); NaN if unknown (real logs).
+    y : (n_steps, n_y) measurements.
+    u : (n_steps, n_u) inputs, or None for autonomous models.
+    x0 : (n_x,) the initial state x^(0) the simulation started from.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    u: np.ndarray | None
+    x0: np.ndarray | None = None
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.y.shape[0])
+
+
+class StateSpaceModel:
+    """Base class of every model (see the module docstring for the contract).
+
+    Class attributes
+    ----------------
+    name : registry name (set by :func:`pfbench.models.register`).
+    n_x : state dimension.
+    n_y : measurement dimension.
+    n_u : input dimension (0 for autonomous models).
+    n_noise : number of standard-normal draws per particle and step that ``transition`` takes.
+    n_obs_noise : number of standard-normal draws per step that ``observe`` takes (default n_y).
+    """
+
+    name: str = ""
+    n_x: int = 1
+    n_y: int = 1
+    n_u: int = 0
+    n_noise: int = 1
+    n_obs_noise: int | None = None
+    #: names of the state components, for tables and plots
+    state_names: tuple[str, ...] | None = None
+
+    # ----- the model, as vectorised functions ------------------------------------------
+    def params(self) -> tuple:
+        """Parameters as a numba-friendly tuple (floats, ints, float64 arrays)."""
+        return ()
+
+    @staticmethod
+    def initial(rng, n, p):  # pragma: no cover - abstract
+        """Draw ``n`` particles from the prior p(x^(0)); returns (n, n_x)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def transition(x, u, t, noise, p):  # pragma: no cover - abstract
+        """Propagate particles ``x`` (n, n_x) with standard-normal ``noise`` (n, n_noise)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):  # pragma: no cover - abstract
+        """log p(y_t | x_t) for each particle; returns (n,)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def observe(x, u, t, noise, p):  # pragma: no cover - abstract
+        """Measurement y_t = h(x_t) + noise for simulation; returns (n, n_y)."""
+        raise NotImplementedError
+
+    # ----- non-kernel helpers ----------------------------------------------------------
+    def inputs(self, rng: np.random.Generator, n_steps: int) -> np.ndarray | None:
+        """Input sequence for a simulation (n_steps, n_u); None for autonomous models."""
+        return None
+
+    @property
+    def obs_noise_dim(self) -> int:
+        return self.n_y if self.n_obs_noise is None else self.n_obs_noise
+
+    def simulate(self, n_steps: int, seed: int | np.random.Generator | None = 0) -> Trajectory:
+        """Simulate ``n_steps`` steps of the model with ``numpy.random.default_rng(seed)``.
+
+        Draw order: inputs (if any), x^(0) from the prior, then per step the transition
+        noise (n_noise) and the measurement noise (n_obs_noise).
+        """
+        if int(n_steps) < 1:
+            raise ValueError("n_steps must be >= 1")
+        n_steps = int(n_steps)
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        p = self.params()
+        u = self.inputs(rng, n_steps)
+        u_arr = self.input_array(u, n_steps)
+        x = np.asarray(self.initial(rng, 1, p), dtype=np.float64).reshape(1, self.n_x)
+        x0 = x[0].copy()
+        xs = np.empty((n_steps, self.n_x))
+        ys = np.empty((n_steps, self.n_y))
+        for t in range(n_steps):
+            v = rng.standard_normal((1, self.n_noise))
+            x = np.asarray(self.transition(x, u_arr[t], t, v, p), dtype=np.float64).reshape(1, self.n_x)
+            n = rng.standard_normal((1, self.obs_noise_dim))
+            ys[t] = np.asarray(self.observe(x, u_arr[t], t, n, p)).reshape(self.n_y)
+            xs[t] = x[0]
+        return Trajectory(x=xs, y=ys, u=u, x0=x0)
+
+    def input_array(self, u, n_steps: int) -> np.ndarray:
+        """Inputs as a C-contiguous float64 (n_steps, n_u) array (n_u may be 0)."""
+        if u is None:
+            if self.n_u:
+                raise ValueError(f"model {self.name!r} needs inputs u of shape (n_steps, {self.n_u})")
+            return np.zeros((n_steps, 0))
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        if u.ndim == 1:
+            u = u.reshape(-1, 1)
+        if u.shape != (n_steps, self.n_u):
+            raise ValueError(f"inputs u must have shape ({n_steps}, {self.n_u}), got {u.shape}")
+        return u
+
+    def kernel_functions(self) -> dict:
+        """The four model functions, as plain Python functions (for backends and tracing)."""
+        cls = type(self)
+        return {name: inspect.getattr_static(cls, name).__func__
+                for name in ("initial", "transition", "log_likelihood", "observe")}
+
+    def describe(self) -> dict:
+        return {"name": self.name, "n_x": self.n_x, "n_y": self.n_y, "n_u": self.n_u,
+                "n_noise": self.n_noise}
+
+    def __repr__(self) -> str:
+        return f"<model {self.name or type(self).__name__}: n_x={self.n_x}, n_y={self.n_y}, n_u={self.n_u}>"
+
+
+@register_jitable
+def gaussian_loglik_diag(resid, var):
+    """Sum over columns of log N(resid; 0, var) for resid (n, m) and var (m,).
+
+    ``register_jitable``: a plain Python function when called from Python (the NumPy backend,
+    operation counting), compiled when called from a numba kernel. Model helpers should use it.
+    """
+    out = np.zeros(resid.shape[0])
+    for j in range(resid.shape[1]):
+        r = resid[:, j]
+        out += -0.5 * r * r / var[j] - 0.5 * (LOG_2PI + np.log(var[j]))
+    return out

@@ -1,0 +1,62 @@
+"""Ob2: five states, fifteen outputs (seed 001 §4).
+
+    x_i^(k+1) = 0.5 x_i^(k) + v_i,                                       v_i ~ N(0, 1)
+    y_i      = 4 x_i + x_{i+1} / (1 + x_{i+2}^2) + 0.2 sin(x_{i+2} x_{i+3}) + n_i,   var 6
+    y_{i+5}  = 4 x_i + x_{i+1} / (1 + x_{i+2}^2) + n_{i+5},                          var 4
+    y_{i+10} = 2 x_i + 0.5 (x_{i+1} + x_{i+2}) + n_{i+10},                           var 1
+    indices cyclic (x_i = x_{i+5}); x^(0) = 0.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import register
+from numba.extending import register_jitable
+
+from .base import StateSpaceModel, gaussian_loglik_diag
+
+
+@register_jitable
+def ob2_h(x):
+    """Noise-free measurement function of Ob2, (n, 5) -> (n, 15)."""
+    n = x.shape[0]
+    h = np.empty((n, 15))
+    for i in range(5):
+        x1 = x[:, i]
+        x2 = x[:, (i + 1) % 5]
+        x3 = x[:, (i + 2) % 5]
+        x4 = x[:, (i + 3) % 5]
+        common = 4.0 * x1 + x2 / (1.0 + x3 * x3)
+        h[:, i] = common + 0.2 * np.sin(x3 * x4)
+        h[:, i + 5] = common
+        h[:, i + 10] = 2.0 * x1 + 0.5 * (x2 + x3)
+    return h
+
+
+@register("ob2")
+class Ob2(StateSpaceModel):
+    n_x, n_y, n_u, n_noise = 5, 15, 0, 5
+    state_names = tuple(f"x{i}" for i in range(1, 6))
+
+    def __init__(self, q: float = 1.0, r=(6.0, 4.0, 1.0), a: float = 0.5):
+        self.q, self.a = float(q), float(a)
+        self.r = np.repeat(np.asarray(r, dtype=np.float64), 5)
+
+    def params(self):
+        return (np.sqrt(self.q), self.r, self.a)
+
+    @staticmethod
+    def initial(rng, n, p):
+        return np.zeros((n, 5))
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        return p[2] * x + p[0] * noise
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        return gaussian_loglik_diag(y - ob2_h(x), p[1])
+
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        return ob2_h(x) + np.sqrt(p[1]) * noise

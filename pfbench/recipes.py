@@ -1,0 +1,294 @@
+"""Recipe framework: one recipe per paper figure/table, registered as data.
+
+A recipe is a function decorated with :func:`recipe`; it lives in
+``reproductions/<paper>/<something>.py`` and is discovered automatically. It receives a
+:class:`RecipeContext` and writes its outputs through it, so that every result gets
+
+* data (CSV, optionally Parquet) and pictures (PNG) under ``results/<paper>/``,
+* a provenance record ``results/<paper>/<id>.json`` (git SHA, package versions, CPU, seed,
+  backend, quick/full, elapsed time, list of outputs),
+* a paper-vs-ours table (``ctx.compare``) printed to the terminal and collected by
+  ``pfbench report`` into ``results/REPORT.md``.
+
+Example::
+
+    from pfbench.recipes import recipe
+
+    @recipe("embedded:fig5", aliases=("fig5",), title="Platform timing",
+            quick_cost="~1 min", full_cost="~5 min")
+    def fig5(ctx):
+        df = ...
+        ctx.write_table("fig5", df)
+        ctx.compare("D(O) at M=N=1000", ours=3050.0, paper=3112.0, unit="ms")
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import pkgutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from . import io
+from .errors import PfbenchError
+from .provenance import provenance
+
+PAPERS = {
+    "embedded": "Particle filter on an STM32F4 (seed 000)",
+    "multipdf": "MultiPDF particle filter (seed 001)",
+    "thesis": "Particle filters for optimal control under uncertainty (seed 002)",
+    "rtd": "Kalman filter for a resistance temperature detector (seed 004)",
+}
+DEFAULT_PAPER = "embedded"
+
+
+@dataclass(frozen=True)
+class Recipe:
+    id: str                      # "paper:name"
+    func: Callable[["RecipeContext"], Any]
+    title: str
+    aliases: tuple[str, ...] = ()
+    quick_cost: str = ""
+    full_cost: str = ""
+    needs: tuple[str, ...] = ()  # optional tools, e.g. ("mcu-tools",); recipe skipped by --all if missing
+
+    @property
+    def paper(self) -> str:
+        return self.id.split(":", 1)[0]
+
+    @property
+    def name(self) -> str:
+        return self.id.split(":", 1)[1]
+
+
+_REGISTRY: dict[str, Recipe] = {}
+_DISCOVERED = False
+
+
+def recipe(id: str, *, title: str, aliases: Iterable[str] = (), quick_cost: str = "",
+           full_cost: str = "", needs: Iterable[str] = ()):
+    """Register a recipe function under ``id`` ("paper:name")."""
+    if ":" not in id or id.split(":", 1)[0] not in PAPERS:
+        raise ValueError(f"recipe id must be '<paper>:<name>' with paper in {sorted(PAPERS)}: {id!r}")
+
+    def deco(func):
+        _REGISTRY[id] = Recipe(id=id, func=func, title=title, aliases=tuple(aliases),
+                               quick_cost=quick_cost, full_cost=full_cost, needs=tuple(needs))
+        return func
+
+    return deco
+
+
+def discover() -> dict[str, Recipe]:
+    """Import every module under ``reproductions`` so that their recipes register."""
+    global _DISCOVERED
+    if not _DISCOVERED:
+        import reproductions
+
+        for mod in pkgutil.walk_packages(reproductions.__path__, prefix="reproductions."):
+            importlib.import_module(mod.name)
+        _DISCOVERED = True
+    return dict(sorted(_REGISTRY.items()))
+
+
+def resolve(name: str) -> Recipe:
+    """Find a recipe by full id, alias, or bare name (bare names default to the embedded paper)."""
+    reg = discover()
+    if name in reg:
+        return reg[name]
+    for rec in reg.values():
+        if name in rec.aliases:
+            return rec
+    if ":" not in name and f"{DEFAULT_PAPER}:{name}" in reg:
+        return reg[f"{DEFAULT_PAPER}:{name}"]
+    matches = [r for r in reg.values() if r.name == name]
+    if len(matches) == 1:
+        return matches[0]
+    if len(matches) > 1:
+        ids = ", ".join(r.id for r in matches)
+        raise PfbenchError(f"recipe name {name!r} is ambiguous: use one of {ids}")
+    raise PfbenchError(f"unknown recipe {name!r}; `pfbench list` shows the recipes")
+
+
+@dataclass
+class Comparison:
+    quantity: str
+    ours: Any
+    paper: Any = None
+    unit: str = ""
+    note: str = ""
+
+    @property
+    def deviation(self) -> float | None:
+        """Relative deviation (ours - paper) / |paper| when both are numbers."""
+        try:
+            o, p = float(self.ours), float(self.paper)
+        except (TypeError, ValueError):
+            return None
+        if p == 0 or not math.isfinite(o) or not math.isfinite(p):
+            return None
+        return (o - p) / abs(p)
+
+    def as_dict(self) -> dict:
+        return {"quantity": self.quantity, "ours": self.ours, "paper": self.paper,
+                "unit": self.unit, "deviation": self.deviation, "note": self.note}
+
+
+@dataclass
+class RecipeContext:
+    """What a recipe gets: options, output helpers, and the paper-vs-ours ledger."""
+
+    recipe: Recipe
+    full: bool = False
+    backend: str = "numba"
+    seed: int = 0
+    out_root: Path = Path("results")
+    data: Path | None = None
+    options: dict = field(default_factory=dict)
+    quiet: bool = False
+    outputs: list[str] = field(default_factory=list)
+    comparisons: list[Comparison] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def out_dir(self) -> Path:
+        return Path(self.out_root) / self.recipe.paper
+
+    def path(self, filename: str) -> Path:
+        return self.out_dir / filename
+
+    def _record(self, path: Path) -> Path:
+        self.outputs.append(str(path))
+        return path
+
+    # ----- outputs -------------------------------------------------------------------
+    def write_table(self, name: str, frame, parquet: bool = False) -> Path:
+        """Write a DataFrame as ``<name>.csv`` (and ``.parquet`` if asked)."""
+        p = self._record(io.write_csv(self.path(f"{name}.csv"), frame))
+        if parquet:
+            self._record(io.write_parquet(self.path(f"{name}.parquet"), frame))
+        return p
+
+    def write_figure(self, name: str, fig) -> Path:
+        return self._record(io.write_figure(self.path(f"{name}.png"), fig))
+
+    def write_json(self, name: str, obj) -> Path:
+        return self._record(io.write_json(self.path(f"{name}.data.json"), obj))
+
+    # ----- ledger ----------------------------------------------------------------------
+    def compare(self, quantity: str, ours, paper=None, unit: str = "", note: str = "") -> None:
+        """Record one paper-vs-ours line (paper may be None or a claim in words)."""
+        self.comparisons.append(Comparison(quantity, ours, paper, unit, note))
+
+    def note(self, text: str) -> None:
+        """A sentence for the report: what differs from the paper and why."""
+        self.notes.append(text)
+
+    def progress(self, iterable=None, total: int | None = None, desc: str = ""):
+        """A tqdm progress bar (to stderr), shown for long work unless quiet."""
+        from tqdm.auto import tqdm
+
+        return tqdm(iterable, total=total, desc=desc or self.recipe.id, disable=self.quiet,
+                    file=sys.stderr, leave=False, dynamic_ncols=True)
+
+    def log(self, text: str) -> None:
+        if not self.quiet:
+            print(text, file=sys.stderr)
+
+
+def format_comparisons(comparisons: list[Comparison]) -> str:
+    """Plain-text table: quantity | ours | paper | deviation | note."""
+    if not comparisons:
+        return "(no paper-vs-ours comparisons recorded)"
+
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        return "-" if v is None else str(v)
+
+    rows = [("quantity", "ours", "paper", "dev", "note")]
+    for c in comparisons:
+        dev = c.deviation
+        rows.append((c.quantity + (f" [{c.unit}]" if c.unit else ""), fmt(c.ours), fmt(c.paper),
+                     f"{dev:+.1%}" if dev is not None else "", c.note))
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    lines = []
+    for r in rows:
+        lines.append("  ".join(r[i].ljust(widths[i]) for i in range(4)) + ("  " + r[4] if r[4] else ""))
+    return "\n".join(lines)
+
+
+def run(rec: Recipe, *, full: bool = False, backend: str = "numba", seed: int = 0,
+        out_root: str | Path = "results", data: str | Path | None = None, quiet: bool = False,
+        options: dict | None = None) -> RecipeContext:
+    """Run one recipe and write its provenance record. Returns the filled context."""
+    ctx = RecipeContext(recipe=rec, full=full, backend=backend, seed=seed, out_root=Path(out_root),
+                        data=Path(data) if data else None, options=dict(options or {}), quiet=quiet)
+    t0 = time.perf_counter()
+    rec.func(ctx)
+    elapsed = time.perf_counter() - t0
+    record = provenance(
+        recipe=rec.id, title=rec.title, mode="full" if full else "quick", backend=backend,
+        seed=seed, data=str(ctx.data) if ctx.data else None, options=ctx.options,
+        elapsed_s=round(elapsed, 3), outputs=ctx.outputs,
+        comparisons=[c.as_dict() for c in ctx.comparisons], notes=ctx.notes, extra=ctx.extra)
+    io.write_json(ctx.path(f"{rec.name}.json"), record)
+    ctx.extra["elapsed_s"] = elapsed
+    return ctx
+
+
+def write_report(out_root: str | Path = "results") -> Path:
+    """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``."""
+    import json
+
+    out_root = Path(out_root)
+    records = []
+    for paper in PAPERS:
+        for p in sorted((out_root / paper).glob("*.json")):
+            if p.name.endswith(".data.json"):
+                continue
+            try:
+                rec = json.loads(p.read_text())
+            except (OSError, ValueError):
+                continue
+            if isinstance(rec, dict) and "recipe" in rec:
+                records.append(rec)
+    lines = ["# pfbench results report", "",
+             "Generated by `pfbench report` from the provenance records under `results/`.", ""]
+    for paper, title in PAPERS.items():
+        recs = [r for r in records if r["recipe"].startswith(paper + ":")]
+        if not recs:
+            continue
+        lines += [f"## {paper}: {title}", ""]
+        for r in recs:
+            lines.append(f"### `{r['recipe']}`: {r.get('title', '')}")
+            lines.append("")
+            lines.append(f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
+                         f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, "
+                         f"{r.get('created_utc')}")
+            lines.append("")
+            comps = r.get("comparisons") or []
+            if comps:
+                lines.append("| quantity | ours | paper | deviation | note |")
+                lines.append("|---|---|---|---|---|")
+                for c in comps:
+                    dev = c.get("deviation")
+                    q = c["quantity"] + (f" [{c['unit']}]" if c.get("unit") else "")
+                    ours, pap = c.get("ours"), c.get("paper")
+                    ours = f"{ours:.4g}" if isinstance(ours, float) else ours
+                    pap = f"{pap:.4g}" if isinstance(pap, float) else ("-" if pap is None else pap)
+                    lines.append(f"| {q} | {ours} | {pap} | "
+                                 f"{'' if dev is None else f'{dev:+.1%}'} | {c.get('note', '')} |")
+                lines.append("")
+            for n in r.get("notes") or []:
+                lines.append(f"- {n}")
+            outs = [Path(o).name for o in r.get("outputs") or []]
+            if outs:
+                lines.append("")
+                lines.append("Outputs: " + ", ".join(f"`{o}`" for o in outs))
+            lines.append("")
+    return io.write_text(out_root / "REPORT.md", "\n".join(lines) + "\n")
