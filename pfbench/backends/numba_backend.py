@@ -56,7 +56,7 @@ def model_functions(module: str, qualname: str):
 
 def _source_fingerprint(cls: type) -> bytes:
     parts = [_TEMPLATE.read_bytes(), numba.__version__.encode(), np.__version__.encode()]
-    for mod_name in {cls.__module__, "pfbench.models.base"}:
+    for mod_name in sorted({cls.__module__, "pfbench.models.base"}):
         mod = sys.modules.get(mod_name)
         try:
             parts.append(inspect.getsource(mod).encode())
@@ -83,8 +83,11 @@ def kernel_module(model_or_cls):
                       f"_initial, _transition, _log_likelihood = _mf({cls.__module__!r}, "
                       f"{cls.__qualname__!r})\n")
             write_text(path, header + _TEMPLATE.read_text())
-        spec = importlib.util.spec_from_file_location(f"pfbench_kernel_{name}", path)
+        modname = f"pfbench_kernel_{name}"
+        spec = importlib.util.spec_from_file_location(modname, path)
         mod = importlib.util.module_from_spec(spec)
+        # numba's cache rebuilds a kernel's environment by importing its module by name
+        sys.modules[modname] = mod
         spec.loader.exec_module(mod)
         _MODULES[cls] = mod
         return mod

@@ -1,0 +1,16 @@
+"""Control of the PMSM drive under uncertainty (seed 002, thesis §4.3-4.4).
+
+* :mod:`.pi` - PI control in the d-q frame (eqs. 4.27-4.39);
+* :mod:`.cautious` - cautious control (eqs. 4.50-4.65, approximation 4.57) and certainty
+  equivalence control (§4.3.3);
+* :mod:`.loss` - tracking loss (eq. 4.16), reference trajectory (§4.4.1) and the failure
+  definition;
+* :mod:`.closed_loop` - closed-loop simulation: true plant + estimator (SMC with the optimal
+  proposal or EKF) + controller, batched and run in parallel processes.
+"""
+from .loss import (FailureCriterion, estimation_failed, reference_speed, tracking_loss)
+from .pi import PIGains, pi_dq_control, pi_update
+from .cautious import cautious_control, cc_constants
+
+__all__ = ["FailureCriterion", "estimation_failed", "reference_speed", "tracking_loss",
+           "PIGains", "pi_dq_control", "pi_update", "cautious_control", "cc_constants"]

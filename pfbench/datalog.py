@@ -1,0 +1,128 @@
+"""CSV logs of the chamber (seed 000 §3): ``load_log(path, model) -> Trajectory``.
+
+Format: a header line, then one row per sample (comma separated)::
+
+    time_s,y,u1,u2[,t_out][,mode]
+
+``time_s`` seconds (strictly increasing, uniform step: a step more than 1.5x the median step is a
+gap), ``y`` indoor temperature (degC), ``u1`` heater %, ``u2`` fan %, optional ``t_out`` outdoor
+temperature (required by ``thermal_outdoor``) and ``mode`` (1 heating, 0 cooling; if absent the
+thermal models derive it as u1 >= 50 %). Which columns are required depends on the model: always
+``time_s`` and ``y`` (or ``y1..y<n_y>``), plus the model's ``log_columns`` (default ``u1..u<n_u>``).
+Every problem raises :class:`pfbench.errors.PfbenchError` with one line naming the file line.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .errors import PfbenchError
+from .models.base import StateSpaceModel, Trajectory
+
+GAP_FACTOR = 1.5
+
+
+def _required(model: StateSpaceModel | None) -> tuple[str, ...]:
+    if model is None:
+        return ("time_s", "y")
+    ys = ("y",) if model.n_y == 1 else tuple(f"y{i + 1}" for i in range(model.n_y))
+    us = getattr(model, "log_columns", None)
+    if us is None:
+        us = tuple(f"u{i + 1}" for i in range(model.n_u))
+    return ("time_s",) + ys + tuple(us)
+
+
+def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray]:
+    """Read and validate a log; returns {column: float64 array} for every column in the header.
+
+    Raises PfbenchError (one line, naming the line) for a missing file or column, an empty log,
+    a short row, a non-numeric or non-finite value, non-increasing time or a gap in time.
+    """
+    path = Path(path)
+    try:
+        fh = open(path, newline="", encoding="utf-8")
+    except OSError as exc:
+        raise PfbenchError(f"{path}: cannot read log: {exc.strerror or exc}") from None
+    with fh:
+        reader = csv.reader(fh)
+        header = None
+        for row in reader:
+            if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#"):
+                header = [c.strip() for c in row]
+                break
+        if header is None:
+            raise PfbenchError(f"{path}: empty log (no header line)")
+        hline = reader.line_num
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise PfbenchError(f"{path}:{hline}: missing column(s) {', '.join(missing)} in header "
+                               f"(have: {', '.join(header)})")
+        data: list[list[float]] = []
+        lines: list[int] = []
+        for row in reader:
+            if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            line = reader.line_num
+            if len(row) != len(header):
+                raise PfbenchError(f"{path}:{line}: expected {len(header)} values, got {len(row)}")
+            vals = []
+            for name, cell in zip(header, row):
+                try:
+                    v = float(cell)
+                except ValueError:
+                    raise PfbenchError(f"{path}:{line}: non-numeric value {cell.strip()!r} in column "
+                                       f"{name!r}") from None
+                if not math.isfinite(v):
+                    raise PfbenchError(f"{path}:{line}: non-finite value {cell.strip()!r} in column {name!r}")
+                vals.append(v)
+            data.append(vals)
+            lines.append(line)
+    if not data:
+        raise PfbenchError(f"{path}: log has a header but no data rows")
+    arr = np.array(data, dtype=np.float64)
+    cols = {name: np.ascontiguousarray(arr[:, i]) for i, name in enumerate(header)}
+    if "time_s" in cols and len(arr) > 1:
+        t = cols["time_s"]
+        dt = np.diff(t)
+        bad = np.flatnonzero(dt <= 0)
+        if bad.size:
+            i = bad[0] + 1
+            raise PfbenchError(f"{path}:{lines[i]}: time not increasing (time_s {t[i]:g} after {t[i - 1]:g})")
+        step = float(np.median(dt))
+        gaps = np.flatnonzero(dt > GAP_FACTOR * step)
+        if gaps.size:
+            i = gaps[0] + 1
+            raise PfbenchError(f"{path}:{lines[i]}: gap in time ({dt[i - 1]:g} s between time_s "
+                               f"{t[i - 1]:g} and {t[i]:g}; sample step {step:g} s)")
+    return cols
+
+
+def load_log(path, model: StateSpaceModel) -> Trajectory:
+    """Load a chamber log for ``model``: validated (y, u) and NaN true states.
+
+    Models may define ``log_arrays(cols) -> (y, u)`` (e.g. thermal_outdoor uses y - t_out) and
+    ``init_from_log(cols)`` (the thermal models initialise the PF from the first measurement
+    y(0), seed 000 §4.2) -- note this sets the model's y0 in place.
+    """
+    cols = read_log(path, required=_required(model))
+    if hasattr(model, "log_arrays"):
+        y, u = model.log_arrays(cols)
+    else:
+        yn = ("y",) if model.n_y == 1 else tuple(f"y{i + 1}" for i in range(model.n_y))
+        y = np.column_stack([cols[c] for c in yn])
+        u = np.column_stack([cols[f"u{i + 1}"] for i in range(model.n_u)]) if model.n_u else None
+    if hasattr(model, "init_from_log"):
+        model.init_from_log(cols)
+    n = y.shape[0]
+    return Trajectory(x=np.full((n, model.n_x), np.nan), y=np.ascontiguousarray(y, dtype=np.float64),
+                      u=None if u is None else np.ascontiguousarray(u, dtype=np.float64), x0=None)
+
+
+def write_log(path, run, decimals: int = 4) -> Path:
+    """Write a :class:`pfbench.chamber.ChamberRun` as a log CSV (atomically)."""
+    from . import io
+
+    return io.write_csv(path, run.frame().round(decimals))

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Install the Cortex-M4 cross toolchain used by `pfbench mcu emulate` (issue 8).
+# Idempotent: returns at once when everything is already present.
+#   Debian packages: gcc-arm-none-eabi, libnewlib-arm-none-eabi, libnewlib-dev
+#   Python package (project venv): unicorn (the emulator; symbols come from arm-none-eabi-objdump)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY="${PFBENCH_PYTHON:-}"
+if [ -z "$PY" ]; then
+  if [ -x .venv/bin/python ]; then PY=.venv/bin/python; else PY=python3; fi
+fi
+
+have_debs() {
+  command -v arm-none-eabi-gcc >/dev/null 2>&1 &&
+    [ -d /usr/lib/arm-none-eabi/newlib ] &&
+    dpkg -s libnewlib-dev >/dev/null 2>&1
+}
+
+if have_debs; then
+  echo "mcu-tools: arm-none-eabi toolchain present ($(arm-none-eabi-gcc -dumpversion))"
+else
+  SUDO=""
+  if [ "$(id -u)" != "0" ]; then
+    if command -v sudo >/dev/null 2>&1; then SUDO="sudo"; else
+      echo "mcu-tools: need root (or sudo) to apt-get install the toolchain" >&2; exit 1; fi
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends \
+    gcc-arm-none-eabi libnewlib-arm-none-eabi libnewlib-dev >/dev/null
+  echo "mcu-tools: installed $(arm-none-eabi-gcc -dumpversion)"
+fi
+
+if "$PY" -c "import unicorn" >/dev/null 2>&1; then
+  echo "mcu-tools: unicorn present"
+else
+  "$PY" -m pip install -q "unicorn>=2.0"
+  echo "mcu-tools: installed unicorn"
+fi

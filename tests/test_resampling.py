@@ -1,0 +1,130 @@
+"""Resampling schemes: unbiasedness, variance ordering, determinism, backend equality."""
+import numpy as np
+import pytest
+
+from pfbench import resampling
+from pfbench.backends import numba_resampling
+
+RANDOM_SCHEMES = ("systematic", "stratified", "multinomial", "residual")
+
+
+def _weights(n=20, seed=0):
+    w = np.random.default_rng(seed).gamma(0.5, size=n)
+    return w / w.sum()
+
+
+@pytest.mark.parametrize("scheme", RANDOM_SCHEMES)
+def test_offspring_counts_unbiased(scheme):
+    """E[N_i] = N w_i for every scheme. Mean over R replications has sd <= sqrt(N w (1-w) / R)
+    (the multinomial variance bounds the others); we allow 5 of those (|z| > 5: p < 6e-7)."""
+    n, reps = 20, 4000
+    w = _weights(n)
+    rng = np.random.default_rng(1)
+    counts = np.zeros((reps, n))
+    for r in range(reps):
+        counts[r] = np.bincount(resampling.resample(scheme, w, rng), minlength=n)
+    assert np.all(counts.sum(axis=1) == n)
+    mean = counts.mean(axis=0)
+    sd = np.sqrt(n * w * (1 - w) / reps)
+    assert np.all(np.abs(mean - n * w) <= 5 * sd + 1e-12)
+
+
+def test_variance_ordering():
+    """Offspring-count variance: systematic, stratified, residual <= multinomial = N w (1 - w)."""
+    n, reps = 20, 4000
+    w = _weights(n, seed=3)
+    var = {}
+    for scheme in RANDOM_SCHEMES:
+        rng = np.random.default_rng(2)
+        c = np.array([np.bincount(resampling.resample(scheme, w, rng), minlength=n) for _ in range(reps)])
+        var[scheme] = c.var(axis=0).sum()
+    multinomial_theory = (n * w * (1 - w)).sum()
+    # sample variance of the multinomial counts within 10 % of theory (reps = 4000: sd ~ 2 %)
+    assert abs(var["multinomial"] / multinomial_theory - 1) < 0.1
+    for scheme in ("systematic", "stratified", "residual"):
+        assert var[scheme] < var["multinomial"]
+    assert var["systematic"] <= var["stratified"]
+
+
+def test_residual_deterministic_is_deterministic_and_draws_nothing():
+    """Deterministic remainder: not unbiased by design (N_i in {floor, ceil} of N w_i)."""
+    w = _weights(50, seed=4)
+    rng = np.random.default_rng(5)
+    state = rng.bit_generator.state
+    a = resampling.residual_deterministic(w, rng)
+    b = resampling.residual_deterministic(w, rng)
+    assert np.array_equal(a, b)
+    assert rng.bit_generator.state == state
+    counts = np.bincount(a, minlength=50)
+    assert np.all(counts >= np.floor(50 * w)) and np.all(counts <= np.floor(50 * w) + 1)
+
+
+def test_residual_deterministic_gives_remainder_to_largest_residuals():
+    w = np.array([0.45, 0.35, 0.2])  # N w = 1.35, 1.05, 0.6 -> floor 1, 1, 0; R = 1 -> goes to index 2
+    assert resampling.residual_deterministic(w).tolist() == [0, 1, 2]
+
+
+@pytest.mark.parametrize("scheme", resampling.SCHEMES)
+def test_numba_equals_numpy(scheme):
+    for seed in range(5):
+        w = _weights(200, seed)
+        a = resampling.resample(scheme, w, np.random.default_rng(seed))
+        b = numba_resampling.resample(scheme, w, np.random.default_rng(seed))
+        assert np.array_equal(a, b)
+
+
+def test_unnormalised_weights_accepted():
+    w = _weights(30, seed=7)
+    rng1, rng2 = np.random.default_rng(0), np.random.default_rng(0)
+    assert np.array_equal(resampling.systematic(w, rng1), resampling.systematic(1e-300 * w, rng2))
+
+
+@pytest.mark.parametrize("bad", [np.array([]), np.array([0.0, 0.0]), np.array([1.0, np.nan]),
+                                 np.array([1.0, -0.5])])
+def test_bad_weights_rejected(bad):
+    with pytest.raises(ValueError):
+        resampling.systematic(bad, np.random.default_rng(0))
+
+
+def test_unknown_scheme():
+    with pytest.raises(ValueError, match="unknown resampling scheme"):
+        resampling.get("nope")
+
+
+def test_h_opt_matches_closed_form_1d():
+    # n_x = 1: c_1 = 2, A = (8/2 * 5 * 2 sqrt(pi))^(1/5)
+    a = (4 * 5 * 2 * np.sqrt(np.pi)) ** 0.2
+    assert resampling.h_opt(1000, 1) == pytest.approx(a * 1000 ** -0.2)
+
+
+def test_epanechnikov_moments():
+    """1-D Epanechnikov kernel: support [-1, 1], mean 0, variance 1/5; n_x-D: E||e||^2 = n/(n+4)."""
+    rng = np.random.default_rng(0)
+    e = resampling.epanechnikov(rng, 200_000, 1)[:, 0]
+    assert np.all(np.abs(e) <= 1)
+    assert abs(e.mean()) < 5 * np.sqrt(0.2 / e.size)
+    assert e.var() == pytest.approx(0.2, rel=0.02)
+    e3 = resampling.epanechnikov(rng, 200_000, 3)
+    assert np.mean(np.sum(e3 ** 2, axis=1)) == pytest.approx(3 / 7, rel=0.02)
+
+
+def test_regularized_preserves_mean_and_inflates_spread_slightly():
+    rng = np.random.default_rng(1)
+    x = rng.normal(2.0, 1.0, (5000, 2))
+    w = np.ones(5000)
+    out = resampling.regularized(x, w, np.random.default_rng(2))
+    assert out.shape == x.shape
+    assert np.allclose(out.mean(axis=0), 2.0, atol=0.1)
+    h = resampling.h_opt(5000, 2)
+    # jitter adds h^2 * E[eps^2 per coordinate] = h^2 / (n_x + 4) to the variance
+    expected = x.var(axis=0) * (1 + h ** 2 / 6)
+    assert np.allclose(out.var(axis=0), expected, rtol=0.08)
+
+
+def test_regularized_numba_matches_numpy():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(300, 2))
+    w = rng.random(300)
+    a = resampling.regularized(x, w, np.random.default_rng(9))
+    b = numba_resampling.regularized(x, w, np.random.default_rng(9))
+    assert np.allclose(a, b, rtol=0, atol=1e-12)
