@@ -31,9 +31,15 @@ test-slow: $(STAMP)
 # Benchmarks: pytest-benchmark suite plus `pfbench bench` (JSON under results/bench/).
 # The `particles` comparison runs in its own environment (.venv-particles) because
 # `particles` pins an older NumPy; see scripts/bench_particles.py.
-bench: $(STAMP)
+bench: $(STAMP) .venv-particles/.installed-stamp
+	mkdir -p results/bench
 	$(BIN)/python -m pytest -q benchmarks --benchmark-enable --benchmark-json=results/bench/pytest-benchmark.json
 	$(BIN)/pfbench bench
+
+.venv-particles/.installed-stamp:
+	$(PYTHON) -m venv .venv-particles
+	.venv-particles/bin/python -m pip install --quiet particles
+	touch $@
 
 report: $(STAMP)
 	$(BIN)/pfbench report

@@ -33,7 +33,8 @@ from ..io import write_text
 _TEMPLATE = Path(__file__).with_name("numba_kernel.tmpl")
 _LOCK = threading.Lock()
 _MODULES: dict[type, object] = {}
-_FUNCS: dict[tuple[str, str], tuple] = {}
+_FUNCS: dict[type, tuple] = {}
+_CLASSES: dict[tuple[str, str], type] = {}
 
 
 def cache_dir() -> Path:
@@ -43,15 +44,16 @@ def cache_dir() -> Path:
 
 def model_functions(module: str, qualname: str):
     """njit-compiled (initial, transition, log_likelihood) of a model class (cached)."""
-    key = (module, qualname)
-    if key not in _FUNCS:
-        obj = importlib.import_module(module) if module != "__main__" else sys.modules["__main__"]
+    obj = _CLASSES.get((module, qualname))
+    if obj is None:  # a process that imports the kernel module directly
+        obj = importlib.import_module(module)
         for part in qualname.split("."):
             obj = getattr(obj, part)
+    if obj not in _FUNCS:
         jit = numba.njit(cache=True, nogil=True)
-        _FUNCS[key] = tuple(jit(inspect.getattr_static(obj, name).__func__)
+        _FUNCS[obj] = tuple(jit(inspect.getattr_static(obj, name).__func__)
                             for name in ("initial", "transition", "log_likelihood"))
-    return _FUNCS[key]
+    return _FUNCS[obj]
 
 
 def _source_fingerprint(cls: type) -> bytes:
@@ -73,6 +75,8 @@ def kernel_module(model_or_cls):
     with _LOCK:
         if cls in _MODULES:
             return _MODULES[cls]
+        # models defined in scripts or notebooks are not importable by name: register the class
+        _CLASSES[(cls.__module__, cls.__qualname__)] = cls
         digest = _source_fingerprint(cls).hex()[:16]
         safe = "".join(c if c.isalnum() else "_" for c in f"{cls.__module__}_{cls.__qualname__}")
         name = f"k_{safe}_{digest}"

@@ -284,7 +284,7 @@ def run_batch(cfg: LoopConfig, n_runs: int, seed: int = 0, workers: int | None =
         with ProcessPoolExecutor(max_workers=workers) as pool:
             it = pool.map(_batch_worker, jobs)
             for rr in (progress(it, total=len(jobs)) if progress else it):
-                rows.extend(rows_ := rr) if False else rows.extend(rr)
+                rows.extend(rr)
     rows.sort()
     arr = np.array(rows, dtype=np.float64).reshape(-1, 6)
     M = cfg.scenario.n_steps(Pmsm(**cfg.model_kw).dt)

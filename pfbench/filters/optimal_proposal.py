@@ -362,6 +362,29 @@ def run_optimal_proposal(model, y, u, *, n_particles=60, ess_threshold=12.0, poi
             "spread": spread, "elapsed_s": elapsed, "us_per_step": elapsed * 1e6 / M}
 
 
+def optimal_proposal_moments(x_prev, u, y, mp, q, r):
+    """Full-state optimal proposal of eqs. 4.22-4.25 for one previous state (reference/tests).
+
+    Returns (m (4,), S (4, 4), log p(y | x_prev)) for x_t | x_{t-1}, y_t ~ N(m, S) with
+    S^-1 = Q^-1 + H' R^-1 H, m = S (Q^-1 g(x_{t-1}) + H' R^-1 y) and
+    p(y | x_{t-1}) = N(y; H g(x_{t-1}), R + H Q H').
+    """
+    from ..models.pmsm import pmsm_step
+
+    g = np.empty(4)
+    pmsm_step(np.asarray(x_prev, dtype=np.float64), np.asarray(u, dtype=np.float64), mp, g)
+    Q, R = np.diag(q), np.diag(r)
+    H = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
+    Qi = np.diag(1.0 / np.asarray(q))
+    Ri = np.linalg.inv(R)
+    S = np.linalg.inv(Qi + H.T @ Ri @ H)
+    m = S @ (Qi @ g + H.T @ Ri @ np.asarray(y))
+    Sy = R + H @ Q @ H.T
+    res = np.asarray(y) - H @ g
+    ll = -0.5 * res @ np.linalg.solve(Sy, res) - 0.5 * (2 * LOG_2PI + np.linalg.slogdet(Sy)[1])
+    return m, S, float(ll)
+
+
 def shift_inputs(u_sim):
     """Convert ``Pmsm.simulate`` inputs (x_t = g(x_{t-1}, u[t])) to the filter convention
     (x_{t+1} = g(x_t, u[t])): u_f[t] = u_sim[t + 1], last row zero."""

@@ -102,11 +102,10 @@ def _format(r: dict) -> str:
         "operation breakdown (cycles share; normals expanded into their generator's operations):",
     ]
     ps = r["n_steps"] * r["n_particles"]
-    lines.append(f"  {'op':<11}{'per part.-step':>15}{'share':>8}")
-    per_ps = r["ops_per_particle_step"]
+    lines.append(f"  {'op':<11}{'per particle-step':>18}{'cycles each':>12}{'share':>8}")
+    per_ps = r["primitive_ops_per_particle_step"]
     for op, share in sorted(r["share"].items(), key=lambda kv: -kv[1]):
-        cnt = per_ps.get(op)
-        lines.append(f"  {op:<11}{(f'{cnt:.3f}' if cnt is not None else '(gen.)'):>15}{share:>8.1%}")
+        lines.append(f"  {op:<11}{per_ps.get(op, 0.0):>18.3f}{r['cycles_each'][op]:>12g}{share:>8.1%}")
     lines.append(f"counted ops: " + ", ".join(f"{k}={v:,}" for k, v in r["ops"].items()) + f"  (for {ps:,} particle-steps)")
     return "\n".join(lines)
 

@@ -213,6 +213,10 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
     counts = count_ops(model if isinstance(model, str) else mdl, int(n_steps), int(n_particles), method,
                        int(n_filters), resampling, model_params)
     by_op = primitive_cycles(counts, table, precision)
+    prim_counts: dict[str, float] = {}
+    for op, n in counts.items():
+        for prim, m in table.expand(precision, op).items():
+            prim_counts[prim] = prim_counts.get(prim, 0.0) + n * m
     total = float(sum(by_op.values()))
     raw_ms = cycles_to_ms(total, clock)
     eff = calibrate(table)["efficiency"][precision] if calibrated else 1.0
@@ -226,6 +230,9 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
         "cycles": eff * total, "raw_cycles": total, "cycles_per_particle_step": eff * total / ps,
         "board_power_w": power, "energy_wh": power * ms / 1e3 / 3600.0,
         "ops": counts, "ops_per_particle_step": {k: v / ps for k, v in counts.items()},
+        "primitive_ops": prim_counts,
+        "primitive_ops_per_particle_step": {k: v / ps for k, v in prim_counts.items()},
+        "cycles_each": {k: table.cost(precision, k) for k in prim_counts},
         "cycles_by_op": by_op, "share": {k: v / total for k, v in by_op.items()} if total else {},
         "memory": mem, "cycles_table": table.path,
     }

@@ -16,7 +16,9 @@ next executed block does not start at its fall-through address.  A shadow call s
 * ``function``: the function the code belongs to (self cost, ELF symbol table),
 * ``phase``: the function called from ``main`` (sim_step, pf_predict, pf_weights, ...),
 * ``entry``: the outermost library routine on the stack (``cos``, ``exp``, ``__aeabi_dmul`` ...)
-  i.e. the inclusive cost of each C-library/libgcc call made by our code.
+  i.e. the inclusive cost of each C-library/libgcc call made by our code;
+* ``owner``: the outermost function of our C file below the phase (``randn`` includes
+  rand_uniform/rand, log/sqrt/cos and their soft-float calls: the cost of the normal draws).
 
 Totals over several small (M, N) are fitted with ``cost = a + b M + c M N`` (least squares)
 and extrapolated to Table 2's configurations: ``c`` is the per-particle-step cost, ``b`` the
@@ -292,6 +294,7 @@ class RunResult:
     by_function: dict               # self function -> {"instructions", "cycles"} (nominal)
     by_phase: dict                  # phase -> cycles (nominal)
     by_entry: dict                  # library entry (inclusive) -> cycles (nominal)
+    by_owner: dict                  # our C function (inclusive of its library calls) -> cycles
     result: list = field(default_factory=list)  # pf_result: sse, last est, last x, M
 
 
@@ -322,6 +325,7 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
     hits: dict = {}
     taken: dict = {}
     stack: list = []            # (return address, function name)
+    rets: dict = {}             # return address -> frames on the stack waiting for it
     contexts: dict = {}
     ctx_names: list = []
     user = prog.user_functions
@@ -330,7 +334,8 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
     def context_id():
         phase = stack[1][1] if len(stack) > 1 else (stack[0][1] if stack else "startup")
         entry = next((f for _, f in stack if f not in user), "")
-        key = (phase, entry)
+        owner = next((f for _, f in stack[2:] if f in user), phase)
+        key = (phase, entry, owner)
         cid = contexts.get(key)
         if cid is None:
             cid = contexts[key] = len(ctx_names)
@@ -346,11 +351,20 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
             if kind == "call" or (kind == "ccall" and addr != state["end"]):
                 info = blocks.get((addr, size)) or prog.block(addr, size)
                 stack.append((state["end"], info[4]))
+                rets[state["end"]] = rets.get(state["end"], 0) + 1
                 state["ctx"] = context_id()
             if kind[0] == "c" and addr != state["end"]:  # taken conditional jump/call
                 taken[state["prev"]] = taken.get(state["prev"], 0) + 1
-        if stack and addr == stack[-1][0]:
-            stack.pop()
+        if addr in rets:
+            # returning; libgcc special-case handlers reached by BL return straight to the
+            # outer caller (pop {.., pc}), so unwind every frame above the matching one
+            while stack:
+                ret, _ = stack.pop()
+                rets[ret] -= 1
+                if not rets[ret]:
+                    del rets[ret]
+                if ret == addr:
+                    break
             state["ctx"] = context_id()
         key = (addr, size, state["ctx"])
         hits[key] = hits.get(key, 0) + 1
@@ -358,7 +372,6 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
         state["prev"], state["end"], state["kind"] = key, addr + size, info[3]
 
     uc.hook_add(UC_HOOK_BLOCK, hook)
-    run.last_stack = stack
     try:
         uc.emu_start(sym["Reset_Handler"] | 1, sym["pf_finish"] & ~1,
                      timeout=int(timeout_s * 1e6))
@@ -374,6 +387,7 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
     by_function: dict = {}
     by_phase: dict = {}
     by_entry: dict = {}
+    by_owner: dict = {}
     for key, h in hits.items():
         n, cnt, cyc, kind, func = prog.block(key[0], key[1])
         n_taken = h if kind in ("jump", "call") else taken.get(key, 0)
@@ -384,7 +398,9 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
         d = by_function.setdefault(func, [0, 0.0])
         d[0] += h * n
         d[1] += c[1]
-        phase, entry = ctx_names[key[2]]
+        phase, entry, owner = ctx_names[key[2]]
+        o = owner or func
+        by_owner[o] = by_owner.get(o, 0.0) + c[1]
         by_phase[phase] = by_phase.get(phase, 0.0) + c[1]
         e = entry or func  # outermost library routine on the stack, else the code itself
         by_entry[e] = by_entry.get(e, 0.0) + c[1]
@@ -396,12 +412,12 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
         cycles={s: float(v) for s, v in zip(SCENARIOS, cycles)},
         by_function={k: {"instructions": int(v[0]), "cycles": float(v[1])}
                      for k, v in by_function.items()},
-        by_phase=by_phase, by_entry=by_entry, result=res)
+        by_phase=by_phase, by_entry=by_entry, by_owner=by_owner, result=res)
 
 
 #: Small configurations (M, N) emulated for the fit; enough spread to separate a, b and c.
-DEFAULT_CONFIGS = {"float": ((4, 16), (8, 16), (4, 32), (8, 32)),
-                   "double": ((2, 8), (4, 8), (2, 16), (4, 16))}
+DEFAULT_CONFIGS = {"float": ((10, 50), (20, 50), (10, 100), (20, 100)),
+                   "double": ((4, 25), (8, 25), (4, 50), (8, 50))}
 
 
 def fit(runs: list[RunResult]) -> dict:
@@ -421,7 +437,7 @@ def fit(runs: list[RunResult]) -> dict:
     out = {"instructions": lsq([r.instructions for r in runs]),
            "cycles": {s: lsq([r.cycles[s] for r in runs]) for s in SCENARIOS},
            "classes": {k: lsq([r.classes[k] for r in runs]) for k in CLASSES}}
-    for attr in ("by_phase", "by_entry"):
+    for attr in ("by_phase", "by_entry", "by_owner"):
         names = sorted({k for r in runs for k in getattr(r, attr)})
         out[attr] = {k: lsq([getattr(r, attr).get(k, 0.0) for r in runs]) for k in names}
     names = sorted({k for r in runs for k in r.by_function})
@@ -515,6 +531,7 @@ def emulate(precision: str = "float", steps: int = 1000, particles: int = 1000,
         "breakdown": {
             "by_function_self": top(f["by_function"]),
             "by_library_call_inclusive": top(f["by_entry"]),
+            "by_c_function_inclusive": top(f["by_owner"]),
             "by_phase": top(f["by_phase"]),
         },
         "fit_residual_rel": f["residual_rel"],

@@ -5,8 +5,9 @@ Units and operating point (our reading, the paper does not state it)
 --------------------------------------------------------------------
 The two-inertial model G(s) = K / ((1 + s T1)(1 + s T2)) (seed 000, eqs. 7-9) is read with
 
-* inputs u1 (LED heater) and u2 (fan) in **percent** (0..100), multiplied by ``u_scale``
-  (default 1.0; ``u_scale=0.01`` would read them as fractions);
+* inputs u1 (LED heater) and u2 (fan) in **percent** (0..100): the model uses ``u_scale * u``
+  (default 1.0; ``u_scale=100`` feeds logs whose inputs are fractions 0..1 under the same reading,
+  ``u_scale=0.01`` with percent inputs is the alternative reading "K per unit fraction");
 * the output as **deviation from an operating point** ``op`` in degC, and the state ``x1`` kept
   as the absolute temperature, i.e. ``x1 - op`` obeys eq. 9. ``op`` defaults to the first
   measurement ``y0`` (the PF "takes into account the initial condition y(0)", §4.2), which the

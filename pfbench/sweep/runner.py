@@ -1,0 +1,196 @@
+"""Run a sweep on local processes or a Dask cluster, appending finished tasks to the store.
+
+Executors
+---------
+``local`` (default): ``workers`` processes (``spawn``); ``workers=1`` runs in this process.
+``dask``: ``scheduler="tcp://host:port"`` connects to a running cluster; without it a
+``distributed.LocalCluster`` on 127.0.0.1 with ``workers`` single-threaded processes is started
+(and closed afterwards). Every executor computes the same numbers (see :mod:`.core`).
+
+At most ``2 x workers`` work units are in flight; Ctrl-C or SIGTERM stops the sweep after
+terminating the workers, keeping every unit already written; re-running resumes.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import PfbenchError
+from .core import n_tasks, run_chunk, task_key, warm_up
+from .store import Store, export_parquet
+
+
+@dataclass
+class SweepReport:
+    store: Path
+    total: int
+    done_before: int
+    done_now: int
+    wall_s: float
+
+    @property
+    def tasks_per_s(self) -> float:
+        return self.done_now / self.wall_s if self.wall_s > 0 else float("nan")
+
+
+def pending_units(spec: dict, store: Store) -> list[tuple[int, list[int]]]:
+    units = []
+    for r in range(spec["runs"]):
+        cis = [ci for ci in range(len(spec["configs"])) if task_key(ci, r) not in store.records]
+        if cis:
+            units.append((r, cis))
+    return units
+
+
+def cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover
+        return os.cpu_count() or 1
+
+
+class _Sigterm:
+    """Turn SIGTERM into KeyboardInterrupt while a sweep runs (main thread only)."""
+
+    def __enter__(self):
+        self.old = None
+        if threading.current_thread() is threading.main_thread():
+            def handler(signum, frame):
+                raise KeyboardInterrupt
+            self.old = signal.signal(signal.SIGTERM, handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self.old is not None:
+            signal.signal(signal.SIGTERM, self.old)
+        return False
+
+
+def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "local",
+              scheduler: str | None = None, progress: bool = True, overwrite: bool = False,
+              max_units: int | None = None) -> SweepReport:
+    """Run (or resume) ``spec`` into the store ``out``; ``max_units`` stops early (testing)."""
+    if executor not in ("local", "dask"):
+        raise PfbenchError(f"unknown executor {executor!r}; choose local or dask")
+    if scheduler:
+        executor = "dask"
+    workers = int(workers or cores())
+    if workers < 1:
+        raise PfbenchError("--workers must be >= 1")
+    store = Store.open(out, spec, overwrite=overwrite)
+    total = n_tasks(spec)
+    before = len(store.records)
+    units = pending_units(spec, store)
+    if max_units is not None:
+        units = units[:max_units]
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=total, initial=before, unit="task", desc=f"sweep {spec['model']}",
+               disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
+    t0 = time.perf_counter()
+
+    def done(recs, wall, worker):
+        store.append(recs, {"run": recs[0]["run"] if recs else -1, "n": len(recs),
+                            "wall_s": round(wall, 6), "worker": worker})
+        bar.update(len(recs))
+
+    try:
+        with _Sigterm():
+            if not units:
+                pass
+            elif executor == "local" and workers == 1:
+                warm_up(spec)
+                for r, cis in units:
+                    t1 = time.perf_counter()
+                    recs = run_chunk(spec, r, cis)
+                    done(recs, time.perf_counter() - t1, "local-0")
+            elif executor == "local":
+                _run_local(spec, units, workers, done)
+            else:
+                _run_dask(spec, units, workers, scheduler, done)
+    finally:
+        bar.close()
+        store.close()
+    wall = time.perf_counter() - t0
+    if store.complete and Path(out).suffix == ".parquet":
+        export_parquet(store, out)
+    return SweepReport(Path(out), total, before, len(store.records) - before, wall)
+
+
+def _timed_chunk(spec, r, cis):
+    t1 = time.perf_counter()
+    recs = run_chunk(spec, r, cis)
+    return recs, time.perf_counter() - t1, f"pid-{os.getpid()}"
+
+
+def _run_local(spec, units, workers, done):
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=warm_up, initargs=(spec,))
+    todo = list(reversed(units))
+    inflight = set()
+    try:
+        while todo or inflight:
+            while todo and len(inflight) < 2 * workers:
+                r, cis = todo.pop()
+                inflight.add(pool.submit(_timed_chunk, spec, r, cis))
+            finished, inflight = wait(inflight, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                try:
+                    recs, wall, who = fut.result()
+                except BrokenProcessPool:
+                    raise PfbenchError("a sweep worker process died; finished tasks are saved, "
+                                       "re-run the same command to resume") from None
+                done(recs, wall, who)
+    except BaseException:
+        for p in list(getattr(pool, "_processes", {}).values()):
+            if p.is_alive():
+                p.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _run_dask(spec, units, workers, scheduler, done):
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:  # pragma: no cover
+        raise PfbenchError("the dask executor needs `pip install dask[distributed]`") from None
+    cluster = None
+    try:
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise PfbenchError(f"cannot reach Dask scheduler {scheduler}: {exc}") from None
+        else:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None)
+            client = Client(cluster)
+        try:
+            n_workers = max(1, len(client.scheduler_info().get("workers", {})) or workers)
+            todo = list(reversed(units))
+            ac = as_completed()
+            for _ in range(min(len(todo), 2 * n_workers)):
+                r, cis = todo.pop()
+                ac.add(client.submit(_timed_chunk, spec, r, cis, pure=False))
+            for fut in ac:
+                recs, wall, who = fut.result()
+                done(recs, wall, who)
+                fut.release()
+                if todo:
+                    r, cis = todo.pop()
+                    ac.add(client.submit(_timed_chunk, spec, r, cis, pure=False))
+        finally:
+            client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,202 @@
+"""The sweep store: an append-only, crash-safe journal of finished tasks.
+
+Format (JSON lines, UTF-8)::
+
+    {"pfbench_sweep_store": 1, "spec": {...}, "spec_hash": "..."}            # header
+    {"crc": <crc32 of "d" as compact sorted JSON>, "d": {record}}            # one per task
+    {"crc": ..., "chunk": {"run": r, "n": k, "wall_s": s, "worker": "..."}}  # per work unit
+
+Records are written in batches (one work unit), each batch one ``write`` followed by
+``flush`` + ``fsync``: a crash (Ctrl-C, SIGTERM, power loss, killed worker) loses at most the
+tasks in flight. On open, a torn *last* line (no trailing newline, e.g. the process died
+inside ``write``) is dropped and truncated away; any other unreadable line, a checksum
+mismatch or a missing/foreign header is reported as a corrupt or foreign store with its line.
+
+``X.parquet`` as ``--out``: the journal lives in ``X.parquet.journal`` and the Parquet table
+(one row per task, sorted by configuration and run) is written atomically when the sweep is
+complete. ``.jsonl`` (or any other suffix): the journal is the store.
+"""
+from __future__ import annotations
+
+import json
+import os
+import zlib
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import PfbenchError
+from .core import spec_hash
+
+MAGIC = "pfbench_sweep_store"
+FORMAT = 1
+
+
+def journal_path(out) -> Path:
+    out = Path(out)
+    return out.with_name(out.name + ".journal") if out.suffix == ".parquet" else out
+
+
+def _dumps(obj) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
+
+
+def _crc(payload) -> int:
+    return zlib.crc32(_dumps(payload).encode())
+
+
+def _line(kind: str, payload) -> str:
+    return _dumps({"crc": _crc(payload), kind: payload}) + "\n"
+
+
+class Store:
+    """An open journal: ``records`` (key -> record) and ``chunks`` (wall-time entries)."""
+
+    def __init__(self, path: Path, spec: dict, records: dict, chunks: list):
+        self.path, self.spec, self.records, self.chunks = path, spec, records, chunks
+        self._fh = None
+
+    # ----- opening ---------------------------------------------------------------------
+    @classmethod
+    def read(cls, path, *, repair: bool = False) -> "Store":
+        """Read a store; ``repair`` truncates a torn last line (only when resuming)."""
+        path = Path(path)
+        if path.suffix == ".parquet" and not path.is_file() and journal_path(path).is_file():
+            path = journal_path(path)
+        if not path.is_file():
+            raise PfbenchError(f"sweep store {path} does not exist")
+        raw = path.read_bytes()
+        if not raw:
+            raise PfbenchError(f"{path} is empty: not a pfbench sweep store")
+        lines = raw.split(b"\n")
+        torn = lines[-1] != b""  # the file does not end in a newline
+        body = lines[:-1]
+        try:
+            header = json.loads(lines[0])
+        except (ValueError, UnicodeDecodeError):
+            header = None
+        if not isinstance(header, dict) or header.get(MAGIC) != FORMAT or "spec" not in header:
+            raise PfbenchError(f"{path} is not a pfbench sweep store (no store header on line 1)")
+        spec = header["spec"]
+        if header.get("spec_hash") != spec_hash(spec):
+            raise PfbenchError(f"{path}: corrupt store header (spec checksum mismatch)")
+        if torn and len(lines) == 1:
+            raise PfbenchError(f"{path}: corrupt store (header line is incomplete)")
+        records, chunks = {}, []
+        for no, ln in enumerate(body[1:], start=2):
+            try:
+                obj = json.loads(ln)
+                kind = "d" if "d" in obj else "chunk"
+                payload = obj[kind]
+                ok = obj["crc"] == _crc(payload)
+            except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+                ok = False
+            if not ok:
+                raise PfbenchError(f"{path}: corrupt store at line {no} (unreadable record or "
+                                   "checksum mismatch); move it away and re-run the sweep")
+            if kind == "d":
+                records[payload["key"]] = payload
+            else:
+                chunks.append(payload)
+        if torn and repair:  # a crash inside write(): drop the partial line
+            with open(path, "r+b") as fh:
+                fh.truncate(len(raw) - len(lines[-1]))
+                fh.flush()
+                os.fsync(fh.fileno())
+        return cls(path, spec, records, chunks)
+
+    @classmethod
+    def open(cls, out, spec: dict, *, overwrite: bool = False) -> "Store":
+        """Create the journal for ``spec`` or reopen it to resume (specs must match)."""
+        path = journal_path(out)
+        if path.exists() and not overwrite:
+            st = cls.read(path, repair=True)
+            if spec_hash(st.spec) != spec_hash(spec):
+                diff = sorted(k for k in set(spec) | set(st.spec) if spec.get(k) != st.spec.get(k))
+                raise PfbenchError(f"{path} holds a different sweep (differs in: {', '.join(diff)}); "
+                                   "use another --out or --overwrite")
+            return st
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(_dumps({MAGIC: FORMAT, "spec": spec, "spec_hash": spec_hash(spec)}) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        if Path(out) != path and Path(out).exists():
+            Path(out).unlink()  # a stale Parquet export of an older sweep
+        return cls(path, spec, {}, [])
+
+    # ----- appending -------------------------------------------------------------------
+    def append(self, records: list[dict], chunk: dict | None = None) -> None:
+        """Durably append a batch of finished tasks (one write + fsync)."""
+        text = "".join(_line("d", r) for r in records)
+        if chunk is not None:
+            text += _line("chunk", chunk)
+        if self._fh is None:
+            self._fh = open(self.path, "a", encoding="utf-8")
+        self._fh.write(text)
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+        for r in records:
+            self.records[r["key"]] = r
+        if chunk is not None:
+            self.chunks.append(chunk)
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+    # ----- views -----------------------------------------------------------------------
+    def frame(self) -> pd.DataFrame:
+        """One row per finished task, sorted by (config, run)."""
+        cols = ["config", "run", "method", "n_particles", "n_filters", "armse", "elapsed_s"]
+        if not self.records:
+            return pd.DataFrame(columns=cols)
+        rows = []
+        for r in self.records.values():
+            row = {k: r[k] for k in cols}
+            for j, v in enumerate(r["rmse"]):
+                row[f"rmse_{j + 1}"] = v
+            rows.append(row)
+        return pd.DataFrame(rows).sort_values(["config", "run"]).reset_index(drop=True)
+
+    @property
+    def complete(self) -> bool:
+        return len(self.records) >= len(self.spec["configs"]) * self.spec["runs"]
+
+
+def load_frame(path) -> tuple[pd.DataFrame, dict, list]:
+    """(tasks frame, spec, chunk entries) of a store given as journal or Parquet export."""
+    path = Path(path)
+    if path.suffix == ".parquet" and path.is_file():
+        import pyarrow.parquet as pq
+
+        try:
+            table = pq.read_table(path)
+        except Exception as exc:  # noqa: BLE001 - pyarrow raises several types
+            raise PfbenchError(f"{path} is not a readable Parquet file: {exc}") from None
+        meta = (table.schema.metadata or {}).get(MAGIC.encode())
+        if meta is None:
+            raise PfbenchError(f"{path} is not a pfbench sweep store (no sweep metadata)")
+        info = json.loads(meta)
+        return table.to_pandas(), info["spec"], info.get("chunks", [])
+    st = Store.read(path)
+    return st.frame(), st.spec, st.chunks
+
+
+def export_parquet(store: Store, out) -> Path:
+    """Write the finished sweep as Parquet (atomic), spec and timings in the metadata."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from ..io import atomic_path
+
+    table = pa.Table.from_pandas(store.frame(), preserve_index=False)
+    meta = dict(table.schema.metadata or {})
+    meta[MAGIC.encode()] = _dumps({"spec": store.spec, "chunks": store.chunks}).encode()
+    table = table.replace_schema_metadata(meta)
+    with atomic_path(out) as tmp:
+        pq.write_table(table, tmp)
+    return Path(out)

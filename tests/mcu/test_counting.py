@@ -1,0 +1,96 @@
+"""Operation counting (pfbench.mcu.counting): derived from the NumPy engine, exact and linear."""
+import numpy as np
+import pytest
+
+from pfbench import models
+from pfbench.backends import numpy_backend
+from pfbench.errors import PfbenchError
+from pfbench.mcu import counting
+from pfbench.models.ob1 import Ob1
+
+
+def _exact(model, m, n, **kw):
+    return counting.count_run(model, m, n, exact=True, **kw)
+
+
+def _diff(a, b):
+    return {k: b.get(k, 0) - a.get(k, 0) for k in set(a) | set(b)}
+
+
+@pytest.mark.parametrize("method,nf", [("bootstrap", 1), ("sis", 1), ("asir", 1), ("multipdf", 2)])
+def test_counts_affine_in_particles(method, nf):
+    # bootstrap work does not depend on the data: counts(N) = a + b N exactly
+    c = [_exact("ob1", 5, n, method=method, n_filters=nf) for n in (20, 40, 60)]
+    d1, d2 = _diff(c[0], c[1]), _diff(c[1], c[2])
+    assert d1 == d2
+    assert d1["normal"] == 5 * 20  # one transition draw per particle-step (Ob1 n_noise = 1)
+
+
+def test_counts_affine_in_steps_and_extrapolation_exact():
+    c = [_exact("ob1", m, 30) for m in (3, 6, 9)]
+    assert _diff(c[0], c[1]) == _diff(c[1], c[2])
+    # the fast path (probe steps + affine extrapolation) equals counting every step
+    assert counting.count_run("ob1", 25, 30) == _exact("ob1", 25, 30)
+
+
+def test_scalar_step_work_counted_once_per_step():
+    # Ob1's 8 cos(1.2 t) is loop-invariant: one cos per step, whatever N_p
+    for n in (10, 50):
+        assert _exact("ob1", 7, n)["cos"] == 7
+
+
+def test_transition_draws_are_steps_times_particles_times_noise_dim():
+    # each extra step draws exactly N_p * n_noise standard normals (initial draws cancel)
+    for model in ("ob1", "ob3", "thermal_inertial"):
+        mdl = models.get(model)
+        for n in (8, 16):
+            d = _exact(mdl, 4, n)["normal"] - _exact(mdl, 2, n)["normal"]
+            assert d == 2 * n * mdl.n_noise
+
+
+class _ExtraCos(Ob1):
+    """Ob1 plus one cos per particle whose result is discarded (a register temporary)."""
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        out = Ob1.transition(x, u, t, noise, p)
+        np.cos(out)
+        return out
+
+
+def test_one_extra_cos_per_particle_costs_exactly_one_cos():
+    m, n = 6, 25
+    base, extra = _exact(Ob1(), m, n), _exact(_ExtraCos(), m, n)
+    d = {k: v for k, v in _diff(base, extra).items() if v}
+    assert d == {"cos": m * n}
+
+
+def test_box_muller_normals_counted_as_draws():
+    c = _exact("ob1", 2, 10)
+    assert c["uniform"] == 2  # one systematic-resampling uniform per step
+    assert c["normal"] == 20
+
+
+def test_engine_restored_after_counting_and_error():
+    orig = numpy_backend.np
+    _exact("ob1", 2, 5)
+    assert numpy_backend.np is orig
+    with pytest.raises(PfbenchError):
+        counting.count_run("ob1", 2, 5, method="nope")
+    assert numpy_backend.np is orig
+
+
+def test_counting_does_not_change_the_numbers():
+    # arrays computed under counting are the same as plain NumPy
+    with counting.counting() as cnt:
+        a = counting._wrap(np.linspace(0.1, 2.0, 11), mem=True)
+        r = np.exp(a) * 2.0 + np.cos(a) / 3.0
+    np.testing.assert_array_equal(np.asarray(r), np.exp(np.linspace(0.1, 2.0, 11)) * 2.0
+                                  + np.cos(np.linspace(0.1, 2.0, 11)) / 3.0)
+    assert cnt.as_dict() == {"add": 11, "mul": 11, "div_scalar": 11, "exp": 11, "cos": 11, "load": 22}
+
+
+@pytest.mark.parametrize("bad", [dict(method="x"), dict(n_filters=2), dict(resampling="zzz")])
+def test_bad_configuration(bad):
+    with pytest.raises(PfbenchError):
+        counting.count_run("ob1", 3, 10, **bad)

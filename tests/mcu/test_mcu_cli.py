@@ -1,0 +1,63 @@
+"""``pfbench mcu estimate`` / ``calibrate``: output, JSON and one-line errors (exit 2)."""
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from pfbench.cli import main
+from pfbench.mcu import costmodel as cm
+
+
+def _run(args):
+    return CliRunner().invoke(main, ["mcu", *args])
+
+
+def test_estimate_json_matches_predict():
+    r = _run(["estimate", "--model", "ob1", "--steps", "300", "--particles", "200", "--precision", "double",
+              "--json"])
+    assert r.exit_code == 0, r.output
+    obj = json.loads(r.stdout)
+    for key in ("predicted_ms", "energy_wh", "precision", "clock_mhz", "ops"):
+        assert key in obj
+    ref = cm.predict("ob1", 300, 200, "double")
+    assert obj["predicted_ms"] == pytest.approx(ref["predicted_ms"], rel=1e-12)
+    assert obj["precision"] == "double" and obj["clock_mhz"] == 168.0
+
+
+def test_estimate_multipdf_text():
+    r = _run(["estimate", "--model", "ob1", "--steps", "100", "--particles", "200", "--precision", "float",
+              "--method", "multipdf", "--filters", "4"])
+    assert r.exit_code == 0, r.output
+    assert "predicted time" in r.stdout and "N_f=4" in r.stdout and "log" in r.stdout
+
+
+def test_calibrate_command():
+    r = _run(["calibrate"])
+    assert r.exit_code == 0
+    assert "LOO" in r.stdout and "efficiency" in r.stdout
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--precision", "half"], "--precision"),
+    (["--clock-mhz", "-5"], "--clock-mhz"),
+    (["--particles", "0"], "--particles"),
+    (["--model", "nope"], "unknown model"),
+    (["--filters", "2"], "--filters"),
+    (["--cycles", "/nonexistent/c.json"], "not found"),
+    (["--particles", "100000", "--precision", "double"], "largest N_p that fits"),
+])
+def test_bad_inputs_one_line_exit_2(args, needle):
+    r = _run(["estimate", *args])
+    assert r.exit_code == 2
+    err = r.stderr.strip()
+    assert err.startswith("error:") and "\n" not in err and needle in err
+    assert "Traceback" not in r.output
+
+
+def test_cycles_file_missing_op_cli(tmp_path):
+    raw = json.loads(cm.load_table().path and open(cm.load_table().path).read())
+    del raw["precisions"]["double"]["cycles"]["log"]
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps(raw))
+    r = _run(["estimate", "--cycles", str(f), "--precision", "double"])
+    assert r.exit_code == 2 and "'log'" in r.stderr

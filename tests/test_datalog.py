@@ -1,0 +1,85 @@
+"""CSV log loader (pfbench.datalog) and `pfbench run --data`."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pfbench import chamber, models
+from pfbench.cli import main
+from pfbench.datalog import load_log, read_log, write_log
+from pfbench.errors import PfbenchError
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "reproductions" / "embedded" / "example_log.csv"
+GOOD = "time_s,y,u1,u2,t_out\n0,19.5,100,30,19.4375\n1,19.5625,100,30,19.4375\n2,19.625,0,100,19.5\n"
+
+
+def _write(tmp_path, text, name="log.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_roundtrip_and_initial_measurement(tmp_path):
+    run = chamber.heating_normal(seed=1, duration_s=60)
+    p = write_log(tmp_path / "hn.csv", run)
+    m = models.get("thermal_inertial")
+    tr = load_log(p, m)
+    np.testing.assert_allclose(tr.y[:, 0], run.y, atol=1e-12)
+    np.testing.assert_allclose(tr.u, np.column_stack([run.u1, run.u2, run.mode]))
+    assert np.all(np.isnan(tr.x)) and m.y0 == run.y[0]   # PF starts at y(0), seed 000 §4.2
+    mo = models.get("thermal_outdoor")
+    tro = load_log(p, mo)
+    np.testing.assert_allclose(tro.y[:, 0], run.y - run.t_out, atol=1e-12)
+    assert mo.y0 == pytest.approx(run.y[0] - run.t_out[0]) and mo.t_in0 == run.y[0]
+
+
+def test_mode_derived_from_u1_when_absent(tmp_path):
+    tr = load_log(_write(tmp_path, GOOD), models.get("thermal_inertial"))
+    np.testing.assert_array_equal(tr.u[:, 2], [1.0, 1.0, 0.0])
+    assert load_log(_write(tmp_path, GOOD), models.get("thermal_rate")).u is None
+
+
+@pytest.mark.parametrize("text,pattern", [
+    ("time_s,y,u2\n0,19.5,30\n", r"log.csv:1: missing column\(s\) u1"),
+    (GOOD.replace("1,19.5625,", "1,abc,"), r"log.csv:3: non-numeric value 'abc' in column 'y'"),
+    (GOOD.replace("1,19.5625,", "1,,"), r"log.csv:3: non-numeric value '' in column 'y'"),
+    (GOOD.replace("\n2,", "\n0.5,"), r"log.csv:4: time not increasing"),
+    (GOOD + "3,19.6,0,100,19.5\n7,19.6,0,100,19.5\n", r"log.csv:6: gap in time"),
+    (GOOD.replace("\n2,19.625,0,100,19.5", "\n2,19.625,0,100"), r"log.csv:4: expected 5 values, got 4"),
+    (GOOD.replace("1,19.5625,", "1,nan,"), r"log.csv:3: non-finite value"),
+    ("time_s,y,u1,u2\n", r"no data rows"),
+    ("", r"empty log"),
+])
+def test_bad_logs_raise_one_line_naming_the_line(tmp_path, text, pattern):
+    p = _write(tmp_path, text)
+    with pytest.raises(PfbenchError, match=pattern) as ei:
+        load_log(p, models.get("thermal_inertial"))
+    assert "\n" not in str(ei.value)
+
+
+def test_outdoor_model_needs_t_out(tmp_path):
+    p = _write(tmp_path, "time_s,y,u1,u2\n0,19.5,100,30\n1,19.5,100,30\n")
+    with pytest.raises(PfbenchError, match="missing column.*t_out"):
+        load_log(p, models.get("thermal_outdoor"))
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(PfbenchError, match="cannot read log"):
+        read_log(tmp_path / "nope.csv")
+
+
+def test_cli_run_on_log_and_bad_log(tmp_path):
+    r = CliRunner().invoke(main, ["run", "--model", "thermal_rate", "--data", str(EXAMPLE), "--particles", "50",
+                                  "--backend", "numpy", "--json"])
+    assert r.exit_code == 0, r.output
+    assert '"n_steps": ' in r.output
+    bad = _write(tmp_path, GOOD.replace("\n2,", "\n0.5,"))
+    r = CliRunner().invoke(main, ["run", "--model", "thermal_inertial", "--data", str(bad), "--backend", "numpy"])
+    assert r.exit_code == 2
+    assert "error:" in r.output and "log.csv:4: time not increasing" in r.output
+
+
+def test_example_log_is_valid():
+    cols = read_log(EXAMPLE)
+    assert set(cols) >= {"time_s", "y", "u1", "u2", "t_out", "mode"} and len(cols["y"]) > 100
