@@ -164,7 +164,16 @@ def regularized(particles, weights, rng: np.random.Generator, scheme: str = "sys
     eps_i ~ Epanechnikov. Draw order: the scheme's draws, then :func:`epanechnikov`'s.
     Returns the new (N, n_x) particles.
     """
-    x = np.asarray(particles, dtype=np.float64)
+    x, w, d, h = regularization_setup(particles, weights, bandwidth)
+    idx = get(scheme)(w, rng)
+    eps = epanechnikov(rng, x.shape[0], x.shape[1])
+    return x[idx] + h * eps @ d.T
+
+
+def regularization_setup(particles, weights, bandwidth=None):
+    """(x, w, D, h) for regularized resampling: particles as (N, n_x) float64, the weights,
+    a factor D with D D^T = weighted empirical covariance, and the bandwidth (default h_opt)."""
+    x = np.ascontiguousarray(particles, dtype=np.float64)
     if x.ndim == 1:
         x = x[:, None]
     n, n_x = x.shape
@@ -172,13 +181,7 @@ def regularized(particles, weights, rng: np.random.Generator, scheme: str = "sys
     wn = w / np.cumsum(w)[-1]
     mean = wn @ x
     cov = ((x - mean) * wn[:, None]).T @ (x - mean)
-    d = _chol_psd_factor(cov)
-    idx = get(scheme)(w, rng)
+    ev, v = np.linalg.eigh(0.5 * (cov + cov.T))
+    d = np.ascontiguousarray(v * np.sqrt(np.clip(ev, 0.0, None)))
     h = h_opt(n, n_x) if bandwidth is None else float(bandwidth)
-    eps = epanechnikov(rng, n, n_x)
-    return x[idx] + h * eps @ d.T
-
-
-def _chol_psd_factor(cov: np.ndarray) -> np.ndarray:
-    w, v = np.linalg.eigh(0.5 * (cov + cov.T))
-    return v * np.sqrt(np.clip(w, 0.0, None))
+    return x, w, d, h

@@ -26,10 +26,12 @@ def cumsum_into(w, cdf):
 def _merge(cdf, n, start_u, stride_u, idx):
     """idx[i] = smallest j with cdf[j] > (u_i + i) / n * total, positions increasing."""
     total = cdf[n - 1]
+    pos = np.empty(n)
+    for i in range(n):  # vectorisable: same operations as the NumPy reference
+        pos[i] = (start_u[i * stride_u] + i) / n * total
     j = 0
     for i in range(n):
-        pos = (start_u[i * stride_u] + i) / n * total
-        while j < n - 1 and cdf[j] <= pos:
+        while j < n - 1 and cdf[j] <= pos[i]:
             j += 1
         idx[i] = j
 
@@ -157,14 +159,6 @@ def regularized(particles, weights, rng, scheme: str = "systematic", bandwidth=N
     """Regularized resampling on the numba backend (see :func:`pfbench.resampling.regularized`)."""
     from .. import resampling as ref
 
-    x = np.ascontiguousarray(particles, dtype=np.float64)
-    if x.ndim == 1:
-        x = x[:, None]
-    n, n_x = x.shape
-    w = np.asarray(weights, dtype=np.float64)
-    wn = w / np.cumsum(w)[-1]
-    mean = wn @ x
-    d = ref._chol_psd_factor(((x - mean) * wn[:, None]).T @ (x - mean))
+    x, w, d, h = ref.regularization_setup(particles, weights, bandwidth)
     idx = resample(scheme, w, rng)
-    h = ref.h_opt(n, n_x) if bandwidth is None else float(bandwidth)
-    return _regularized_jitter(x, idx, np.ascontiguousarray(d), h, rng)
+    return _regularized_jitter(x, idx, d, h, rng)

@@ -13,7 +13,20 @@ from __future__ import annotations
 import numpy as np
 
 from . import register
+from numba.extending import register_jitable
+
 from .base import StateSpaceModel, gaussian_loglik_diag
+
+
+@register_jitable
+def ob4_h(x):
+    """Noise-free outputs y1 = 2 x1^2 + 0.004 x2, y2 = 2 x2^2 + 0.004 x1."""
+    x1 = x[:, 0]
+    x2 = x[:, 1]
+    h = np.empty((x.shape[0], 2))
+    h[:, 0] = 2.0 * x1 * x1 + 0.004 * x2
+    h[:, 1] = 2.0 * x2 * x2 + 0.004 * x1
+    return h
 
 
 @register("ob4")
@@ -51,18 +64,8 @@ class Ob4(StateSpaceModel):
 
     @staticmethod
     def log_likelihood(y, x, u, t, p):
-        x1 = x[:, 0]
-        x2 = x[:, 1]
-        h = np.empty_like(x)
-        h[:, 0] = 2.0 * x1 * x1 + 0.004 * x2
-        h[:, 1] = 2.0 * x2 * x2 + 0.004 * x1
-        return gaussian_loglik_diag(y - h, p[1])
+        return gaussian_loglik_diag(y - ob4_h(x), p[1])
 
     @staticmethod
     def observe(x, u, t, noise, p):
-        x1 = x[:, 0]
-        x2 = x[:, 1]
-        h = np.empty_like(x)
-        h[:, 0] = 2.0 * x1 * x1 + 0.004 * x2
-        h[:, 1] = 2.0 * x2 * x2 + 0.004 * x1
-        return h + np.sqrt(p[1]) * noise
+        return ob4_h(x) + np.sqrt(p[1]) * noise
