@@ -6,9 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY="${PFBENCH_PYTHON:-}"
-if [ -z "$PY" ]; then
-  if [ -x .venv/bin/python ]; then PY=.venv/bin/python; else PY=python3; fi
-fi
+if [ -z "$PY" ] && [ -x .venv/bin/python ]; then PY=.venv/bin/python; fi
 
 have_debs() {
   command -v arm-none-eabi-gcc >/dev/null 2>&1 &&
@@ -31,7 +29,11 @@ else
   echo "mcu-tools: installed $(arm-none-eabi-gcc -dumpversion)"
 fi
 
-if "$PY" -c "import unicorn" >/dev/null 2>&1; then
+# The emulator (unicorn) is a runtime dependency in pyproject.toml, installed with the venv;
+# only repair an existing venv here (never pip-install into the system Python).
+if [ -z "$PY" ]; then
+  echo "mcu-tools: no .venv yet; unicorn comes with it (make venv)"
+elif "$PY" -c "import unicorn" >/dev/null 2>&1; then
   echo "mcu-tools: unicorn present"
 else
   "$PY" -m pip install -q "unicorn>=2.0"

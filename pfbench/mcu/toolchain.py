@@ -56,9 +56,10 @@ class Build:
 def missing() -> list[str]:
     """Why the toolchain/emulator cannot be used here (empty list when everything is present)."""
     out = []
-    for tool in (GCC, "arm-none-eabi-objdump", "arm-none-eabi-objcopy", "arm-none-eabi-nm"):
-        if shutil.which(tool) is None:
-            out.append(f"{tool} not on PATH (run `make mcu-tools`)")
+    tools = [t for t in (GCC, "arm-none-eabi-objdump", "arm-none-eabi-objcopy",
+                         "arm-none-eabi-nm") if shutil.which(t) is None]
+    if tools:
+        out.append(f"{', '.join(tools)} not on PATH (run `make mcu-tools`)")
     if not out:
         lib = _gcc_print("-mcpu=cortex-m4", "-mthumb", "-print-file-name=libc_nano.a")
         if not os.path.isabs(lib) or not os.path.exists(lib):
@@ -133,9 +134,13 @@ def build(precision: str = "float", opt: str | None = None, force: bool = False)
                 _run(["arm-none-eabi-nm", "-n", "-S", "pf_ob1.elf"], tmp, stdout=f)
             with open(tmp / "pf_ob1_user.nm", "w") as f:
                 _run(["arm-none-eabi-nm", "pf_ob1.o"], tmp, stdout=f)
-            if out.exists():
+            if force and out.exists():
                 shutil.rmtree(out, ignore_errors=True)
-            os.replace(tmp, out)
+            try:
+                os.replace(tmp, out)
+            except OSError:  # another process finished the same build first: use theirs
+                if not all(p.exists() for p in files.values()):
+                    raise
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)

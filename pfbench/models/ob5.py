@@ -65,8 +65,8 @@ TS = 1e-4
 
 
 def equilibrium_current(x1: float, m: float = M_BALL, g: float = G, fem2: float = 0.0) -> float:
-    """Upper-coil current with Fem1 = m g - Fem2 at ball position x1 (A)."""
-    return float(np.sqrt((m * g - fem2) * FEMP2 / FEMP1 * np.exp(x1 / FEMP2)))
+    """Upper-coil current with Fem1 = m g + Fem2 at ball position x1 (A) (dx2 = 0)."""
+    return float(np.sqrt((m * g + fem2) * FEMP2 / FEMP1 * np.exp(x1 / FEMP2)))
 
 
 @register_jitable

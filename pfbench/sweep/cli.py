@@ -77,7 +77,7 @@ def _do_run(kw: dict) -> None:
     grid = _grid_file(kw.pop("grid")) if kw.get("grid") else {}
     kw.pop("grid", None)
     opts = {k.replace("-", "_"): v for k, v in grid.items()}
-    opts.update({k: v for k, v in kw.items() if v not in (None, (), False)})
+    opts.update({k: v for k, v in kw.items() if v is not None and v is not False and v != ()})
     if not opts.get("model"):
         raise PfbenchError("give --model (or a --grid file); `pfbench sweep --help` lists the options")
     if not opts.get("out"):

@@ -87,11 +87,15 @@ def code_fingerprint(model: str) -> str:
 
     from .. import models
     from ..backends import numba_backend
-    from ..filters import marginalized
+    from .. import resampling
+    from ..backends import numba_resampling, numpy_backend
+    from ..filters import api, marginalized
+    from ..models import base
 
     cls = models.model_class(model)
     h = hashlib.sha256()
-    for mod in (sys.modules[cls.__module__], marginalized, sys.modules[__name__]):
+    for mod in (sys.modules[cls.__module__], base, api, marginalized, resampling, numba_resampling,
+                numpy_backend, sys.modules[__name__]):
         h.update(inspect.getsource(mod).encode())
     h.update(numba_backend._TEMPLATE.read_bytes())
     h.update(np.__version__.encode())

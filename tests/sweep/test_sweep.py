@@ -1,0 +1,165 @@
+"""pfbench sweep: determinism across workers/executors, resume, corruption, CLI."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+import pfbench
+from pfbench.errors import PfbenchError
+from pfbench.models import get
+from pfbench.sweep import load_frame, make_spec, run_multipdf, run_sweep, summarize_frame
+from pfbench.sweep.store import Store, journal_path
+
+COLS = ["config", "run", "method", "n_particles", "n_filters", "armse", "rmse_1"]
+
+
+def _spec(runs=6, model="ob1", **kw):
+    return make_spec(model, particles=(20, 40), filters=(1, 2), runs=runs, steps=20, seed=3, **kw)
+
+
+def _frame(path):
+    return load_frame(path)[0][COLS]
+
+
+def test_run_multipdf_equals_run_filter():
+    m = get("ob4")
+    tr = m.simulate(30, seed=1)
+    ss = lambda: np.random.SeedSequence(5, spawn_key=(1, 2))  # noqa: E731 (spawn() mutates)
+    est, sub = run_multipdf(m, tr.y, m.input_array(tr.u, 30), 60, 3, ss())
+    ref = pfbench.run_filter(m, tr.y, tr.u, method="multipdf", n_particles=60, n_filters=3,
+                             seed=ss())
+    np.testing.assert_array_equal(est, ref.estimates)
+    np.testing.assert_array_equal(sub, ref.sub_estimates)
+
+
+def test_one_vs_two_workers_identical(tmp_path):
+    spec = _spec()
+    run_sweep(spec, tmp_path / "a.jsonl", workers=1, progress=False)
+    run_sweep(spec, tmp_path / "b.parquet", workers=2, progress=False)
+    a, b = _frame(tmp_path / "a.jsonl"), _frame(tmp_path / "b.parquet")
+    assert len(a) == len(spec["configs"]) * spec["runs"] == 24
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_resume_after_interruption_gives_same_store(tmp_path):
+    spec = _spec()
+    run_sweep(spec, tmp_path / "full.jsonl", workers=1, progress=False)
+    part = tmp_path / "part.jsonl"
+    run_sweep(spec, part, workers=1, progress=False, max_units=2)  # "interrupted" after 2 units
+    assert 0 < len(Store.read(part).records) < 24
+    with open(part, "a") as fh:                                     # torn write of a crash
+        fh.write('{"crc": 1, "d": {"key": "0:5", "arm')
+    rep = run_sweep(spec, part, workers=1, progress=False)
+    assert rep.done_before == 8 and rep.done_now == 16
+    pd.testing.assert_frame_equal(_frame(part), _frame(tmp_path / "full.jsonl"))
+    # re-running a complete sweep does nothing
+    assert run_sweep(spec, part, workers=1, progress=False).done_now == 0
+
+
+def test_sigterm_then_resume(tmp_path):
+    out = tmp_path / "s.jsonl"
+    cmd = [sys.executable, "-m", "pfbench.cli", "sweep", "--model", "ob1", "--particles", "1000",
+           "--filters", "1,2", "--runs", "300", "--steps", "100", "--seed", "1", "--workers", "1",
+           "--quiet", "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 30
+    while time.time() < deadline:
+        if out.exists() and out.read_text().count("\n") > 20:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err.decode()[-500:]
+    st = Store.read(out)
+    assert 0 < len(st.records) < 600
+    spec = st.spec
+    run_sweep(spec, out, workers=1, progress=False)
+    ref = tmp_path / "ref.jsonl"
+    small = dict(spec)
+    run_sweep(small, ref, workers=1, progress=False)
+    pd.testing.assert_frame_equal(_frame(out), _frame(ref))
+
+
+def test_corrupt_and_foreign_stores(tmp_path):
+    spec = _spec(runs=2)
+    p = tmp_path / "c.jsonl"
+    run_sweep(spec, p, workers=1, progress=False)
+    lines = p.read_text().splitlines(keepends=True)
+    lines[2] = lines[2].replace('"run":', '"run": 0, "x":', 1)
+    p.write_text("".join(lines))
+    with pytest.raises(PfbenchError, match="corrupt store at line 3"):
+        Store.read(p)
+    f = tmp_path / "foreign.jsonl"
+    f.write_text('{"hello": 1}\n')
+    with pytest.raises(PfbenchError, match="not a pfbench sweep store"):
+        run_sweep(spec, f, workers=1, progress=False)
+    g = tmp_path / "g.jsonl"
+    run_sweep(spec, g, workers=1, progress=False)
+    with pytest.raises(PfbenchError, match="different sweep"):
+        run_sweep(_spec(runs=3), g, workers=1, progress=False)
+    bad = tmp_path / "x.parquet"
+    bad.write_bytes(b"PAR1 not really")
+    with pytest.raises(PfbenchError):
+        load_frame(bad)
+
+
+def test_dask_localcluster_matches_local(tmp_path):
+    pytest.importorskip("distributed")
+    spec = _spec(runs=4)
+    run_sweep(spec, tmp_path / "l.jsonl", workers=1, progress=False)
+    run_sweep(spec, tmp_path / "d.jsonl", workers=2, executor="dask", progress=False)
+    pd.testing.assert_frame_equal(_frame(tmp_path / "l.jsonl"), _frame(tmp_path / "d.jsonl"))
+
+
+def test_summarize_cli(tmp_path):
+    from pfbench.cli import main
+
+    out = tmp_path / "s.parquet"
+    r = CliRunner().invoke(main, ["sweep", "--model", "ob3", "--version", "2", "--particles", "20,40",
+                                  "--filters", "1,2", "--method", "multipdf,mpf", "--runs", "3",
+                                  "--steps", "10", "--workers", "1", "--quiet", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert out.is_file() and journal_path(out).is_file()
+    r = CliRunner().invoke(main, ["sweep", "summarize", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.output[: r.output.rindex("]") + 1])
+    assert {d["method"] for d in data} == {"multipdf", "mpf"}
+    assert all(d["runs"] == 3 and d["armse_lo"] <= d["armse_mean"] <= d["armse_hi"] for d in data)
+    assert Path(str(out) + ".summary.png").is_file()
+    r = CliRunner().invoke(main, ["sweep", "summarize", str(tmp_path / "nope.jsonl")])
+    assert r.exit_code == 2 and "does not exist" in r.output
+
+
+def test_summary_interval():
+    frame = pd.DataFrame({"method": "multipdf", "n_particles": 10, "n_filters": 1,
+                          "armse": [1.0, 2.0, 3.0, 4.0], "elapsed_s": 0.5})
+    s = summarize_frame(frame).iloc[0]
+    half = 2 * np.std([1, 2, 3, 4], ddof=1) / 2
+    assert s["armse_mean"] == 2.5 and s["armse_hi"] - 2.5 == pytest.approx(half)
+    assert s["runs_per_s"] == pytest.approx(2.0)
+
+
+def test_grid_file(tmp_path):
+    from pfbench.cli import main
+
+    grid = tmp_path / "g.yaml"
+    grid.write_text("model: ob4\nparticles: [20, 40]\nfilters: [1, 2]\nruns: 2\nsteps: 10\n"
+                    "workers: 1\nquiet: true\n")
+    out = tmp_path / "g.jsonl"
+    r = CliRunner().invoke(main, ["sweep", "run", "--grid", str(grid), "--runs", "3",
+                                  "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    st = Store.read(out)
+    assert st.spec["runs"] == 3 and st.spec["model"] == "ob4" and len(st.records) == 12
+    toml = tmp_path / "g.toml"
+    toml.write_text('model = "nope"\n')
+    r = CliRunner().invoke(main, ["sweep", "--grid", str(toml), "--out", str(out)])
+    assert r.exit_code == 2 and "unknown model" in r.output
