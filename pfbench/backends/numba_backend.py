@@ -50,14 +50,35 @@ def model_functions(module: str, qualname: str):
         for part in qualname.split("."):
             obj = getattr(obj, part)
     if obj not in _FUNCS:
-        jit = numba.njit(cache=True, nogil=True)
+        jit = numba.njit(cache=disk_cacheable(obj), nogil=True)
         _FUNCS[obj] = tuple(jit(inspect.getattr_static(obj, name).__func__)
                             for name in ("initial", "transition", "log_likelihood"))
     return _FUNCS[obj]
 
 
+def disk_cacheable(cls: type) -> bool:
+    """Whether numba can reload this model's compiled code in a later process.
+
+    numba's cache re-imports a function's module by name, so models defined in ``exec``'d code,
+    notebooks or modules that cannot be found again are compiled in memory only.
+    """
+    try:
+        src = inspect.getsourcefile(inspect.getattr_static(cls, "transition").__func__)
+    except TypeError:
+        return False
+    if not src or not src.endswith(".py") or not os.path.exists(src):
+        return False
+    if cls.__module__ == "__main__":
+        return True
+    try:
+        return importlib.util.find_spec(cls.__module__) is not None
+    except (ImportError, ValueError):
+        return False
+
+
 def _source_fingerprint(cls: type) -> bytes:
-    parts = [_TEMPLATE.read_bytes(), numba.__version__.encode(), np.__version__.encode()]
+    parts = [_TEMPLATE.read_bytes(), numba.__version__.encode(), np.__version__.encode(),
+             str(disk_cacheable(cls)).encode()]
     for mod_name in sorted({cls.__module__, "pfbench.models.base"}):
         mod = sys.modules.get(mod_name)
         try:
@@ -86,7 +107,10 @@ def kernel_module(model_or_cls):
                       "from pfbench.backends.numba_backend import model_functions as _mf\n"
                       f"_initial, _transition, _log_likelihood = _mf({cls.__module__!r}, "
                       f"{cls.__qualname__!r})\n")
-            write_text(path, header + _TEMPLATE.read_text())
+            body = _TEMPLATE.read_text()
+            if not disk_cacheable(cls):
+                body = body.replace("cache=True", "cache=False")
+            write_text(path, header + body)
         modname = f"pfbench_kernel_{name}"
         spec = importlib.util.spec_from_file_location(modname, path)
         mod = importlib.util.module_from_spec(spec)
