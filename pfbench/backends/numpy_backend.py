@@ -39,9 +39,10 @@ def _clean(ll) -> np.ndarray:
 def weigh(lw: np.ndarray, ll: np.ndarray):
     """Combine normalised log-weights with log-likelihoods, log-sum-exp style.
 
-    Returns (wu, cdf, m, total, degenerate, lw_new): unnormalised weights exp(a - max a),
-    their running sum, the max, the sum, whether every likelihood was zero (then the
-    previous weights are kept), and the new normalised log-weights.
+    Returns (wu, cdf, m, total, degenerate): unnormalised weights exp(a - max a), their
+    running sum, the max, the sum, and whether every likelihood was zero (then the previous
+    weights are kept). The normalised log-weights are only needed when the filter does not
+    resample (:func:`normalised_log_weights`), so they are not computed here.
     """
     a = lw + ll
     m = a.max()
@@ -51,10 +52,13 @@ def weigh(lw: np.ndarray, ll: np.ndarray):
         m = a.max()
     wu = np.exp(a - m)
     cdf = np.cumsum(wu)
-    total = cdf[-1]
+    return wu, cdf, m, cdf[-1], degenerate
+
+
+def normalised_log_weights(wu: np.ndarray, total: float) -> np.ndarray:
+    """log(wu / total), -inf where wu = 0."""
     with np.errstate(divide="ignore"):
-        lw_new = np.log(wu) - np.log(total)
-    return wu, cdf, m, total, degenerate, lw_new
+        return np.log(wu) - np.log(total)
 
 
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
@@ -77,7 +81,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             if method == 3:  # ASIR first stage
                 mu = transition(xg, ut, t, np.zeros((n, n_noise)), p)
                 lam_all = _clean(log_likelihood(yt, mu, ut, t, p))
-                wu, _, m1, tot1, deg1, _ = weigh(lw[g], lam_all)
+                wu, _, m1, tot1, deg1 = weigh(lw[g], lam_all)
                 first = m1 + np.log(tot1)
                 if deg1:
                     lam_all[:] = 0.0
@@ -90,7 +94,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             ll = _clean(log_likelihood(yt, xg, ut, t, p))
             if method == 3:
                 ll = _clean(ll - lam)
-            wu, _, m, total, deg, lw[g] = weigh(lw[g], ll)
+            wu, _, m, total, deg = weigh(lw[g], ll)
             degen[g, t] = deg
             inc[g, t] = (-np.inf if deg else m + np.log(total)) + first
             mean = (wu @ xg) / total
@@ -103,4 +107,6 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             if do:
                 xg[:] = xg[resample(wu, rng)]
                 lw[g] = -logn
+            else:
+                lw[g] = normalised_log_weights(wu, total)
             resampled[g, t] = do
