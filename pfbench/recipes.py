@@ -165,6 +165,19 @@ class RecipeContext:
         self.outputs.append(str(path))
         return path
 
+    # ----- options ---------------------------------------------------------------------
+    def option(self, key: str, default, cast=None):
+        """Recipe option ``key`` (``--option KEY=VALUE``) converted with ``cast`` (default: the
+        type of ``default``); a value that does not convert is a one-line PfbenchError."""
+        if key not in self.options:
+            return default
+        value = self.options[key]
+        cast = cast or (type(default) if default is not None else str)
+        try:
+            return cast(value)
+        except (TypeError, ValueError):
+            raise PfbenchError(f"option {key}={value!r}: expected {cast.__name__}") from None
+
     # ----- outputs -------------------------------------------------------------------
     def write_table(self, name: str, frame, parquet: bool = False) -> Path:
         """Write a DataFrame as ``<name>.csv`` (and ``.parquet`` if asked)."""

@@ -144,7 +144,7 @@ def run_filter(model: StateSpaceModel, y, u=None, *, method: str = "bootstrap", 
         raise PfbenchError(f"unknown resampling scheme {resampling!r}; choose one of {', '.join(SCHEMES)}")
     if dtype not in DTYPES:
         raise PfbenchError(f"unknown dtype {dtype!r}; choose float64 or float32")
-    be = backends.get(backend)
+    backends.get(backend)  # validates the name
     n_particles, n_filters = int(n_particles), int(n_filters)
     if n_particles < 1:
         raise PfbenchError(f"n_particles must be >= 1, got {n_particles}")
@@ -161,38 +161,12 @@ def run_filter(model: StateSpaceModel, y, u=None, *, method: str = "bootstrap", 
     if method == "sir" and not (0 < thr <= n_per):
         raise PfbenchError(f"ess_threshold must be in (0, {n_per}], got {thr}")
 
-    M, n_x = y.shape[0], model.n_x
-    p = model.params()
     rngs = streams(seed, n_filters, common_random_numbers)
+    out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
+                              resampling=resampling, ess_threshold=thr, backend=backend, dtype=dtype,
+                              n_threads=n_threads)
+    est, var, ess, inc, resampled, degen = (out[k] for k in ("est", "var", "ess", "inc", "resampled", "degen"))
     n_groups = len(rngs)
-    per_group = n_filters // n_groups
-    ptype = np.float32 if dtype == "float32" else np.float64
-    x = np.empty((n_filters, n_per, n_x), dtype=ptype)
-    est = np.empty((n_filters, M, n_x))
-    var = np.empty((n_filters, M, n_x))
-    ess = np.empty((n_filters, M))
-    inc = np.empty((n_filters, M))
-    resampled = np.zeros((n_filters, M), dtype=np.bool_)
-    degen = np.zeros((n_filters, M), dtype=np.bool_)
-    code, scheme = _METHOD_CODES[method], _SCHEME_CODES[resampling]
-    if backend == "numba":
-        be.kernel_module(model)  # compile (or load from cache) outside the timed region
-
-    def job(gi: int):
-        sl = slice(gi * per_group, (gi + 1) * per_group)
-        be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, thr, est[sl], var[sl], ess[sl],
-                     inc[sl], resampled[sl], degen[sl])
-
-    t0 = time.perf_counter()
-    if n_groups > 1 and backend == "numba":
-        workers = n_threads or min(n_groups, _cores())
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(job, range(n_groups)))
-    else:
-        for gi in range(n_groups):
-            job(gi)
-    elapsed = time.perf_counter() - t0
-
     totals = inc.sum(axis=1)
     if n_filters == 1:
         loglik = float(totals[0])
@@ -208,6 +182,47 @@ def run_filter(model: StateSpaceModel, y, u=None, *, method: str = "bootstrap", 
         info={"n_per_filter": n_per, "ess_threshold": thr if method == "sir" else None,
               "resampling": resampling, "common_random_numbers": bool(common_random_numbers),
               "n_streams": n_groups})
+
+
+def run_groups(model, y, u, rngs, *, method: str, n_per: int, n_filters: int, resampling: str,
+               ess_threshold: float, backend: str, dtype: str = "float64", n_threads: int | None = None):
+    """Run ``n_filters`` filters of ``n_per`` particles on validated, contiguous ``y``/``u``.
+
+    The filters are split evenly over the random streams ``rngs`` (one group per stream, see
+    :func:`streams`); on numba, groups run in parallel threads (``n_threads``; default all cores,
+    1 to stay sequential). Returns ``(arrays, elapsed_s)`` with per-filter arrays ``est``/``var``
+    (N_f, M, n_x), ``ess``/``inc``/``resampled``/``degen`` (N_f, M). Used by :func:`run_filter`
+    and by the sweep runner.
+    """
+    be = backends.get(backend)
+    M, n_x = y.shape[0], model.n_x
+    p = model.params()
+    n_groups = len(rngs)
+    per_group = n_filters // n_groups
+    ptype = np.float32 if dtype == "float32" else np.float64
+    x = np.empty((n_filters, n_per, n_x), dtype=ptype)
+    out = {"est": np.empty((n_filters, M, n_x)), "var": np.empty((n_filters, M, n_x)),
+           "ess": np.empty((n_filters, M)), "inc": np.empty((n_filters, M)),
+           "resampled": np.zeros((n_filters, M), dtype=np.bool_),
+           "degen": np.zeros((n_filters, M), dtype=np.bool_)}
+    code, scheme = _METHOD_CODES[method], _SCHEME_CODES[resampling]
+    if backend == "numba":
+        be.kernel_module(model)  # compile (or load from cache) outside the timed region
+
+    def job(gi: int):
+        sl = slice(gi * per_group, (gi + 1) * per_group)
+        be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, ess_threshold, out["est"][sl],
+                     out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl])
+
+    t0 = time.perf_counter()
+    workers = min(n_groups, n_threads or _cores())
+    if n_groups > 1 and backend == "numba" and workers > 1:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(job, range(n_groups)))
+    else:
+        for gi in range(n_groups):
+            job(gi)
+    return out, time.perf_counter() - t0
 
 
 def _cores() -> int:

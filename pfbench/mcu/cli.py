@@ -6,7 +6,6 @@ import math
 
 import click
 
-from ..errors import PfbenchError
 
 
 @click.group()
@@ -106,7 +105,7 @@ def _format(r: dict) -> str:
     per_ps = r["primitive_ops_per_particle_step"]
     for op, share in sorted(r["share"].items(), key=lambda kv: -kv[1]):
         lines.append(f"  {op:<11}{per_ps.get(op, 0.0):>18.3f}{r['cycles_each'][op]:>12g}{share:>8.1%}")
-    lines.append(f"counted ops: " + ", ".join(f"{k}={v:,}" for k, v in r["ops"].items()) + f"  (for {ps:,} particle-steps)")
+    lines.append("counted ops: " + ", ".join(f"{k}={v:,}" for k, v in r["ops"].items()) + f"  (for {ps:,} particle-steps)")
     return "\n".join(lines)
 
 

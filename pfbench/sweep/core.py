@@ -129,27 +129,13 @@ def run_multipdf(model, y, u, n_particles: int, n_filters: int, seed, backend: s
                  resampling: str = "systematic"):
     """MultiPDF / bootstrap estimates, equal to ``pfbench.run_filter(..., method="multipdf")``
     (same streams, same kernels) but without its per-call thread pool. Returns (est, sub_est)."""
-    from .. import backends
-    from ..filters.api import _METHOD_CODES, _SCHEME_CODES, streams
+    from ..filters.api import run_groups, streams
 
-    be = backends.get(backend)
     n_per = max(int(round(n_particles / n_filters)), 1)
-    M, n_x = y.shape[0], model.n_x
-    p = model.params()
-    rngs = streams(seed, n_filters, False)
-    per_group = n_filters // len(rngs)
-    x = np.empty((n_filters, n_per, n_x))
-    est = np.empty((n_filters, M, n_x))
-    var = np.empty((n_filters, M, n_x))
-    ess = np.empty((n_filters, M))
-    inc = np.empty((n_filters, M))
-    resampled = np.zeros((n_filters, M), dtype=np.bool_)
-    degen = np.zeros((n_filters, M), dtype=np.bool_)
-    for gi, rng in enumerate(rngs):
-        sl = slice(gi * per_group, (gi + 1) * per_group)
-        be.run_group(model, p, rng, y, u, x[sl], _METHOD_CODES["multipdf"],
-                     _SCHEME_CODES[resampling], 0.5 * n_per, est[sl], var[sl], ess[sl], inc[sl],
-                     resampled[sl], degen[sl])
+    out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method="multipdf", n_per=n_per,
+                        n_filters=n_filters, resampling=resampling, ess_threshold=0.5 * n_per,
+                        backend=backend, n_threads=1)
+    est = out["est"]
     return est.mean(axis=0), est
 
 

@@ -41,7 +41,7 @@ TABLE_A2 = {100: "3-1", 500: "2-1", 1000: "-1"}
 
 
 def _n_seeds(ctx) -> int:
-    return int(ctx.options.get("pf_seeds", 20 if ctx.full else 3))
+    return ctx.option("pf_seeds", 20 if ctx.full else 3, int)
 
 
 def _ambient_for(test: str) -> float:

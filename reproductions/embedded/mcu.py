@@ -24,7 +24,7 @@ def mcu(ctx):
     res = {}
     for prec in ctx.progress(("double", "float"), total=2):
         res[prec] = E.emulate(prec, 1000, 1000, configs=FULL_CONFIGS[prec] if ctx.full else None,
-                              seed=int(ctx.options.get("seed", 1)))
+                              seed=ctx.option("seed", 1, int))
     rows = []
     for prec, r in res.items():
         for row in r["table2"]:

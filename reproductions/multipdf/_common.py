@@ -22,7 +22,7 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
     The store is results/multipdf/sweeps/<name>-<quick|full>.jsonl: an interrupted recipe
     resumes; a store written by other code or another grid is replaced.
     """
-    runs = int(ctx.options.get("runs", runs_full if ctx.full else runs_quick))
+    runs = ctx.option("runs", runs_full if ctx.full else runs_quick, int)
     configs = [("multipdf", p, f) for p in particles for f in filters if f <= p]
     configs += list(extra_configs)
     spec = make_spec(model, params=params or {}, configs=configs, runs=runs, steps=steps,

@@ -13,7 +13,7 @@ from pfbench.recipes import recipe
 def _distances(ctx):
     if "d" in ctx.extra:
         return ctx.extra["d"]
-    M = int(ctx.options.get("steps", 100000 if ctx.full else 20000))
+    M = ctx.option("steps", 100000 if ctx.full else 20000, int)
     model = get("ob4")
     tr = model.simulate(M, seed=np.random.default_rng(np.random.SeedSequence(ctx.seed, spawn_key=(7,))))
     mp = pfbench.run_filter(model, tr.y, tr.u, method="multipdf", n_particles=300, n_filters=3,

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import os
 import platform
-import time
 
 import numpy as np
 import pandas as pd
@@ -21,8 +20,8 @@ def _trimmed(times):
 
 
 def _timing(ctx, n_p: int, name: str):
-    reps = int(ctx.options.get("repeats", 12 if ctx.full else 5))
-    M = int(ctx.options.get("steps", 2000))
+    reps = ctx.option("repeats", 12 if ctx.full else 5, int)
+    M = ctx.option("steps", 2000, int)
     model = get("ob1")
     tr = model.simulate(M, seed=ctx.seed)
     pfbench.run_filter(model, tr.y[:5], method="bootstrap", n_particles=10, backend=ctx.backend)

@@ -10,15 +10,6 @@ from pfbench.errors import PfbenchError
 from pfbench.recipes import recipe
 
 
-def opt(ctx, key, default, cast=float):
-    if key not in ctx.options:
-        return default
-    try:
-        return cast(ctx.options[key])
-    except (TypeError, ValueError):
-        raise PfbenchError(f"option {key}={ctx.options[key]!r}: expected {cast.__name__}") from None
-
-
 def noise_var(y) -> float:
     """Robust white-noise variance of the readings: (1.4826 MAD of first differences)^2 / 2."""
     d = np.diff(np.asarray(y, dtype=np.float64))
@@ -40,8 +31,8 @@ def run_bath(ctx) -> dict:
         y_true, source = None, f"log {ctx.data.name}" + (" (set-point reconstructed)" if log["u_reconstructed"] else "")
     else:
         Ts = rtd.TS
-        t, u, y_true, y = rtd.simulate_bath(R=opt(ctx, "R_meas", 0.05), T_low=opt(ctx, "T_low", 25.0),
-                                            T_high=opt(ctx, "T_high", 38.0), t_hold=opt(ctx, "t_hold", 60.0),
+        t, u, y_true, y = rtd.simulate_bath(R=ctx.option("R_meas", 0.05, float), T_low=ctx.option("T_low", 25.0, float),
+                                            T_high=ctx.option("T_high", 38.0, float), t_hold=ctx.option("t_hold", 60.0, float),
                                             seed=ctx.seed)
         source = "simulated (eq. 52 sensor, ZOH Ts=0.1 s)"
     ch = np.nonzero(np.diff(u) != 0)[0] + 1
@@ -57,10 +48,10 @@ def run_bath(ctx) -> dict:
         fit = rtd.fit_rc_step(t[up], y[up], y_final=hi, y_start=lo, frac=(0.1, 0.9))
     except PfbenchError as exc:
         raise PfbenchError(f"RC fit of the step up failed: {exc}") from None
-    gain = opt(ctx, "gain", 1.0)
+    gain = ctx.option("gain", 1.0, float)
     rc = rtd.rc_model(fit.tau, Ts=Ts, gain=gain)
     R_hat = max(noise_var(y), 1e-12)
-    ra, rb, rk = opt(ctx, "ratio_a", 1e4), opt(ctx, "ratio_b", 0.2), opt(ctx, "ratio_kf", 1e-3)
+    ra, rb, rk = ctx.option("ratio_a", 1e4, float), ctx.option("ratio_b", 0.2, float), ctx.option("ratio_kf", 1e-3, float)
     bl = rtd.boundary_layer(y, u, rc, qr_a=(ra * R_hat, R_hat), qr_b=(rb * R_hat, R_hat), qr_kf=(rk * R_hat, R_hat))
     ref = y if y_true is None else y_true
     moving = np.abs(u - ref) > 3.0 * np.sqrt(R_hat)          # response still visibly moving

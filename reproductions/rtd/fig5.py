@@ -8,15 +8,6 @@ from pfbench.errors import PfbenchError
 from pfbench.recipes import recipe
 
 
-def opt(ctx, key, default, cast=float):
-    if key not in ctx.options:
-        return default
-    try:
-        return cast(ctx.options[key])
-    except (TypeError, ValueError):
-        raise PfbenchError(f"option {key}={ctx.options[key]!r}: expected {cast.__name__}") from None
-
-
 def steady_time(t, errcov, rel=0.01):
     """First time after which C P C^T stays within ``rel`` of its final value."""
     off = np.abs(errcov - errcov[-1]) > rel * abs(errcov[-1])
@@ -30,8 +21,8 @@ def fig5(ctx):
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    Qu, R = opt(ctx, "Q", 2.3), opt(ctx, "R", 1.0)
-    n = opt(ctx, "n", 600, int)
+    Qu, R = ctx.option("Q", 2.3, float), ctx.option("R", 1.0, float)
+    n = ctx.option("n", 600, int)
     which = str(ctx.options.get("model", "eq52"))
     if which not in ("eq52", "eq54"):
         raise PfbenchError("option model must be eq52 or eq54")

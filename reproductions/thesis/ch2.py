@@ -15,17 +15,8 @@ import pandas as pd
 
 import pfbench
 from pfbench import resampling
-from pfbench.errors import PfbenchError
 from pfbench.models import get
 from pfbench.recipes import recipe
-
-
-def _opt(ctx, key, default, typ=int):
-    v = ctx.options.get(key, default)
-    try:
-        return typ(v)
-    except (TypeError, ValueError):
-        raise PfbenchError(f"option {key}={v!r} is not a valid {typ.__name__}") from None
 
 
 def _particle_history(model, y, n, rng, ess_threshold=None):
@@ -76,7 +67,7 @@ def _cloud_figure(title, tr, X, W, R):
 @recipe("thesis:fig2.2", title="SIS degeneracy, 50 particles, horizon 50 (thesis Fig. 2.2)",
         quick_cost="~5 s", full_cost="~5 s")
 def fig2_2(ctx):
-    n, M = _opt(ctx, "particles", 50), _opt(ctx, "steps", 50)
+    n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
     model = get("thesis_example")
     tr = model.simulate(M, seed=ctx.seed)
     X, W, R, E = _particle_history(model, tr.y, n, np.random.default_rng(ctx.seed + 1))
@@ -97,8 +88,8 @@ def fig2_2(ctx):
 @recipe("thesis:fig2.3", title="SIR, multinomial resampling, N_thres = 25 (thesis Fig. 2.3)",
         quick_cost="~5 s", full_cost="~5 s")
 def fig2_3(ctx):
-    n, M = _opt(ctx, "particles", 50), _opt(ctx, "steps", 50)
-    thr = _opt(ctx, "threshold", 25.0, float)
+    n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
+    thr = ctx.option("threshold", 25.0, float)
     model = get("thesis_example")
     tr = model.simulate(M, seed=ctx.seed)
     X, W, R, E = _particle_history(model, tr.y, n, np.random.default_rng(ctx.seed + 1), thr)
@@ -138,8 +129,8 @@ def _mse_runs(n_runs, n, M, backend, seed, progress):
 def fig2_4(ctx):
     import matplotlib.pyplot as plt
 
-    n, M = _opt(ctx, "particles", 50), _opt(ctx, "steps", 20)
-    n_runs = _opt(ctx, "runs", 1000 if ctx.full else 300)
+    n, M = ctx.option("particles", 50, int), ctx.option("steps", 20, int)
+    n_runs = ctx.option("runs", 1000 if ctx.full else 300, int)
     df = _mse_runs(n_runs, n, M, ctx.backend, ctx.seed, ctx.progress)
     ctx.write_table("fig2.4_mse", df)
     mb, ma = df.mse_bootstrap.mean(), df.mse_asir.mean()

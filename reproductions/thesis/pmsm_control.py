@@ -17,17 +17,8 @@ import numpy as np
 import pandas as pd
 
 from pfbench.control.closed_loop import LoopConfig, Scenario, run_batch, run_once
-from pfbench.errors import PfbenchError
 from pfbench.filters.optimal_proposal import step_time_us
 from pfbench.recipes import recipe
-
-
-def _opt(ctx, key, default, typ=int):
-    v = ctx.options.get(key, default)
-    try:
-        return typ(v)
-    except (TypeError, ValueError):
-        raise PfbenchError(f"option {key}={v!r} is not a valid {typ.__name__}") from None
 
 
 def _warm(cfg):
@@ -63,7 +54,7 @@ def _table(results, labels, key):
 @recipe("thesis:fig4.7", title="Tracking loss for two particle counts, PI on the maximum (thesis Fig. 4.7)",
         quick_cost="~30 s", full_cost="~3 min")
 def fig4_7(ctx):
-    n_runs = _opt(ctx, "runs", 1000 if ctx.full else 100)
+    n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     ns = [int(v) for v in str(ctx.options.get("particles", "30,15")).split(",")]
     results = []
     for n in ns:
@@ -95,9 +86,9 @@ def fig4_7(ctx):
 @recipe("thesis:fig4.9", title="Tracking loss: mean vs random sample vs maximum (thesis Fig. 4.9)",
         quick_cost="~1 min", full_cost="~5 min")
 def fig4_9(ctx):
-    n_runs = _opt(ctx, "runs", 1000 if ctx.full else 100)
-    n = _opt(ctx, "particles", 60)
-    hold = _opt(ctx, "hold_s", 0.4, float)
+    n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
+    n = ctx.option("particles", 60, int)
+    hold = ctx.option("hold_s", 0.4, float)
     modes = ("mean", "sample", "max")
     results = []
     for pt in modes:

@@ -15,20 +15,11 @@ import numpy as np
 import pandas as pd
 
 from pfbench.control.closed_loop import LoopConfig, run_batch, run_once
-from pfbench.errors import PfbenchError
-from pfbench.filters.optimal_proposal import Q_THETA_FILTER, step_time_us
+from pfbench.filters.optimal_proposal import step_time_us
 from pfbench.recipes import recipe
 
 DT = 125e-6
 FIG44_TIMES = (0.0, 0.009, 0.019, 0.028, 0.038, 0.047, 0.056, 0.066, 0.075)
-
-
-def _opt(ctx, key, default, typ=int):
-    v = ctx.options.get(key, default)
-    try:
-        return typ(v)
-    except (TypeError, ValueError):
-        raise PfbenchError(f"option {key}={v!r} is not a valid {typ.__name__}") from None
 
 
 @lru_cache(maxsize=4)
@@ -43,7 +34,7 @@ def _wrap(a):
 
 
 def _common(ctx):
-    run = _opt(ctx, "run", 0)
+    run = ctx.option("run", 0, int)
     smc, ekf = _realisation(ctx.seed, run, ctx.backend)
     return run, smc, ekf
 
@@ -142,7 +133,7 @@ def fig4_3(ctx):
 
     run, smc, _ = _common(ctx)
     M = smc["x"].shape[0]
-    t_end = min(M, int(round(_opt(ctx, "t_end", 0.1, float) / DT)))
+    t_end = min(M, int(round(ctx.option("t_end", 0.1, float) / DT)))
     t = np.arange(t_end) * DT
     ob = np.linspace(-15, 15, 121)
     tb = np.linspace(-math.pi, math.pi, 121)
@@ -215,9 +206,9 @@ def fig4_4(ctx):
 def fig4_6(ctx):
     import matplotlib.pyplot as plt
 
-    n_runs = _opt(ctx, "runs", 10)
-    n_pts = _opt(ctx, "points", 13 if ctx.full else 5)
-    sd = _opt(ctx, "prior_sd", 1.0, float)
+    n_runs = ctx.option("runs", 10, int)
+    n_pts = ctx.option("points", 13 if ctx.full else 5, int)
+    sd = ctx.option("prior_sd", 1.0, float)
     offsets = np.linspace(0, math.pi, n_pts)
     rows = []
     for off in ctx.progress(offsets, total=n_pts):

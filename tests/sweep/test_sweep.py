@@ -1,6 +1,5 @@
 """pfbench sweep: determinism across workers/executors, resume, corruption, CLI."""
 import json
-import os
 import signal
 import subprocess
 import sys
