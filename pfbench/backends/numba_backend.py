@@ -121,6 +121,26 @@ def kernel_module(model_or_cls):
         return mod
 
 
+_WARM: set = set()
+
+
+def warm_up(model, p, y, u, dtype) -> None:
+    """Compile (or load) the kernel for these argument types outside any timed region.
+
+    numba compiles on the first call, so one call on a single step and particle with a
+    throwaway generator; the caller's random streams are not touched.
+    """
+    key = (type(model), np.dtype(dtype).str, tuple(type(v).__name__ for v in p))
+    if key in _WARM:
+        return
+    n_x = model.n_x
+    x = np.empty((1, 1, n_x), dtype=dtype)
+    run_group(model, p, np.random.default_rng(0), y[:1], u[:1], x, 0, 0, 1.0, np.empty((1, 1, n_x)),
+              np.empty((1, 1, n_x)), np.empty((1, 1)), np.empty((1, 1)), np.zeros((1, 1), np.bool_),
+              np.zeros((1, 1), np.bool_))
+    _WARM.add(key)
+
+
 def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess, inc, resampled,
               degen) -> None:
     """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL)."""

@@ -207,7 +207,7 @@ def run_groups(model, y, u, rngs, *, method: str, n_per: int, n_filters: int, re
            "degen": np.zeros((n_filters, M), dtype=np.bool_)}
     code, scheme = _METHOD_CODES[method], _SCHEME_CODES[resampling]
     if backend == "numba":
-        be.kernel_module(model)  # compile (or load from cache) outside the timed region
+        be.warm_up(model, p, y, u, ptype)  # compile (or load from cache) outside the timed region
 
     def job(gi: int):
         sl = slice(gi * per_group, (gi + 1) * per_group)
