@@ -51,14 +51,20 @@ def _check_precision(precision: str) -> None:
         raise PfbenchError(f"unknown precision {precision!r}; choose float or double")
 
 
-def _check_clock(clock_mhz) -> float:
+def checked_number(value, what: str, unit: str = "", allow_zero: bool = False) -> float:
+    """``value`` as a finite float > 0 (>= 0 with ``allow_zero``), else a one-line PfbenchError."""
+    unit_s = f" {unit}" if unit else ""
     try:
-        c = float(clock_mhz)
+        v = float(value)
     except (TypeError, ValueError):
-        raise PfbenchError(f"clock must be a number of MHz, got {clock_mhz!r}") from None
-    if not (c > 0 and math.isfinite(c)):
-        raise PfbenchError(f"clock must be > 0 MHz, got {clock_mhz}")
-    return c
+        raise PfbenchError(f"{what} must be a number{' of ' + unit if unit else ''}, got {value!r}") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise PfbenchError(f"{what} must be {'>=' if allow_zero else '>'} 0{unit_s}, got {value}")
+    return v
+
+
+def _check_clock(clock_mhz) -> float:
+    return checked_number(clock_mhz, "clock", "MHz")
 
 
 @lru_cache(maxsize=256)
@@ -199,12 +205,7 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
 
     _check_precision(precision)
     clock = _check_clock(clock_mhz)
-    try:
-        power = float(board_power_w)
-    except (TypeError, ValueError):
-        raise PfbenchError(f"board power must be a number of watts, got {board_power_w!r}") from None
-    if not (power >= 0 and math.isfinite(power)):
-        raise PfbenchError(f"board power must be >= 0 W, got {board_power_w}")
+    power = checked_number(board_power_w, "board power", "W", allow_zero=True)
     table = _table(cycles)
     table.check_precision(precision)
     mdl = models.get(model, **(model_params or {})) if isinstance(model, str) else model

@@ -14,13 +14,11 @@ not readable; default :data:`DEFAULT_HOST_POWER_W`), ``repeats`` (override both 
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pandas as pd
 
 from pfbench import bench_host
-from pfbench.errors import PfbenchError
 from pfbench.mcu import costmodel as cm
 from pfbench.models import get as get_model
 from pfbench.recipes import recipe
@@ -38,14 +36,7 @@ PAPER_PLATFORMS = {"A": "AMD Ryzen 7 2700 (3.2 GHz), C#", "B": "Intel Core i5 42
 
 
 def _opt_float(ctx, key, default):
-    v = ctx.options.get(key, default)
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise PfbenchError(f"option {key} must be a number, got {v!r}") from None
-    if not (v > 0 and math.isfinite(v)):
-        raise PfbenchError(f"option {key} must be > 0, got {v}")
-    return v
+    return cm.checked_number(ctx.option(key, default, float), f"option {key}")
 
 
 def _repeats(ctx, backend):
