@@ -7,6 +7,8 @@ What is timed (all single-threaded unless stated, median of ``--repeats``):
 * the *irreducible work* floor in the same run: one standard-normal draw and one exp per
   particle-step, as a numba loop and as vectorised NumPy, so results read as ratios;
 * MultiPDF (seed 001 Alg. 2) on numba with N_f = 2 at N_p = 200000: 1 thread vs all cores;
+* the PMSM SMC step with the optimal proposal (thesis §4.2.1, 60 particles) against the
+  drive's 125 us sampling period;
 * optionally the ``particles`` library's bootstrap filter on the same model, run by
   ``scripts/bench_particles.py`` in its own environment (``.venv-particles``; it pins an older
   NumPy), when that environment exists (``make bench`` creates it).
@@ -119,14 +121,22 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
                              "floor_numba_ns": fl_nb, "floor_numpy_ns": fl_np, "ratio_to_floor": ns / fl_nb})
     # MultiPDF parallel speed-up
     n_mp = 200_000 if not quick else 50_000
-    traj = model.simulate(50 if not quick else 10, seed=2)
-    one = filter_ns(model, traj, n_mp, "numba", "float64", max(1, repeats // 2), "multipdf", 2, n_threads=1)
+    traj = model.simulate(50 if not quick else 30, seed=2)
+    mp_reps = max(3, repeats // 2)  # short runs: thread start-up noise needs a few repeats
+    one = filter_ns(model, traj, n_mp, "numba", "float64", mp_reps, "multipdf", 2, n_threads=1)
     bar.update()
-    two = filter_ns(model, traj, n_mp, "numba", "float64", max(1, repeats // 2), "multipdf", 2, n_threads=2)
+    two = filter_ns(model, traj, n_mp, "numba", "float64", mp_reps, "multipdf", 2, n_threads=2)
     bar.update()
     bar.close()
     multipdf = {"particles": n_mp, "filters": 2, "ns_1_thread": one, "ns_2_threads": two,
                 "speedup": one / two, "cores": os.cpu_count()}
+    # PMSM SMC with the optimal proposal (thesis §4.2.1): must fit the drive's 125 us period
+    from .filters.optimal_proposal import step_time_us
+
+    pmsm = {"particles": 60, "period_us": 125.0,
+            "us_per_step_mean": step_time_us(n_particles=60, point="mean", repeats=max(1, repeats // 2)),
+            "us_per_step_max": step_time_us(n_particles=60, point="max", repeats=max(1, repeats // 2))}
+    pmsm["margin_x"] = pmsm["period_us"] / max(pmsm["us_per_step_mean"], pmsm["us_per_step_max"])
     part = particles_ns(1000, 1000, max(1, repeats // 2)) if with_particles else None
     by = {(r["steps"], r["particles"], r["backend"], r["dtype"]): r["ns_per_particle_step"] for r in rows}
     summary = {}
@@ -143,7 +153,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
         summary["particles_over_numba"] = part["ns_per_particle_step"] / nb
         summary["particles_over_numpy"] = part["ns_per_particle_step"] / summary["numpy_ns_N1000"]
     return provenance(kind="bench", repeats=repeats, quick=quick, rows=rows, multipdf=multipdf,
-                      particles_library=part, summary=summary)
+                      pmsm_smc=pmsm, particles_library=part, summary=summary)
 
 
 @click.command()
@@ -173,6 +183,9 @@ def bench(repeats, quick, no_particles, out_path, as_json):
     mp = res["multipdf"]
     click.echo(f"MultiPDF N_p={mp['particles']} N_f=2 numba: 1 thread {mp['ns_1_thread']:.1f} ns, "
                f"2 threads {mp['ns_2_threads']:.1f} ns, speed-up {mp['speedup']:.2f}x on {mp['cores']} cores")
+    pm = res["pmsm_smc"]
+    click.echo(f"PMSM SMC, 60 particles, numba: {pm['us_per_step_mean']:.1f} us/step (mean estimate), "
+               f"{pm['us_per_step_max']:.1f} us/step (maximum); period 125 us, margin {pm['margin_x']:.1f}x")
     if res["particles_library"]:
         click.echo(f"particles library: {res['particles_library']}")
     for k, v in res["summary"].items():
