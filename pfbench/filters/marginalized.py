@@ -148,9 +148,27 @@ def _jac(kind, xn, xl, ipar, mat, n_y):
 
 # --------------------------------------------------------------------------- one step
 @register_jitable
+def _sandwich(A, P, Q):
+    """Per particle: A P and A P A^T + Q, for P (n, d_in, d_in), A (d_out, d_in), Q (d_out, d_out)."""
+    n = P.shape[0]
+    d_out, d_in = A.shape
+    AP = np.zeros((n, d_out, d_in))
+    for a in range(d_out):
+        for b in range(d_in):
+            for c in range(d_in):
+                AP[:, a, b] += A[a, c] * P[:, c, b]
+    S = np.zeros((n, d_out, d_out))
+    for a in range(d_out):
+        for b in range(d_out):
+            S[:, a, b] += Q[a, b]
+            for c in range(d_in):
+                S[:, a, b] += AP[:, a, c] * A[b, c]
+    return AP, S
+
+
+@register_jitable
 def _chol(S):
     """Lower Cholesky factors of a batch of SPD matrices S (n, d, d)."""
-    n = S.shape[0]
     d = S.shape[1]
     L = np.zeros_like(S)
     for j in range(d):
@@ -178,17 +196,7 @@ def _predict(kind, xn, m, P, z, u, An, Al, Qn, Ql, fpar):
     xnew = xn.copy()
     if d_n > 0:
         fnv = _fn(kind, xn, u, fpar)
-        AP = np.zeros((n, d_n, d_l))
-        for a in range(d_n):
-            for b in range(d_l):
-                for c in range(d_l):
-                    AP[:, a, b] += An[a, c] * P[:, c, b]
-        N = np.zeros((n, d_n, d_n))
-        for a in range(d_n):
-            for b in range(d_n):
-                N[:, a, b] += Qn[a, b]
-                for c in range(d_l):
-                    N[:, a, b] += AP[:, a, c] * An[b, c]
+        AP, N = _sandwich(An, P, Qn)
         L = _chol(N)
         for a in range(d_n):
             acc = fnv[:, a].copy()
@@ -222,17 +230,7 @@ def _predict(kind, xn, m, P, z, u, An, Al, Qn, Ql, fpar):
     for a in range(d_l):
         for b in range(d_l):
             m_pred[:, a] += Al[a, b] * mm[:, b]
-    T = np.zeros((n, d_l, d_l))
-    for a in range(d_l):
-        for b in range(d_l):
-            for c in range(d_l):
-                T[:, a, b] += Al[a, c] * Pm[:, c, b]
-    P_pred = np.zeros((n, d_l, d_l))
-    for a in range(d_l):
-        for b in range(d_l):
-            P_pred[:, a, b] += Ql[a, b]
-            for c in range(d_l):
-                P_pred[:, a, b] += T[:, a, c] * Al[b, c]
+    _, P_pred = _sandwich(Al, Pm, Ql)
     return xnew, m_pred, P_pred
 
 

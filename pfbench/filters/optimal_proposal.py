@@ -208,6 +208,19 @@ def weights_from_log(lw, wn):
 
 
 @register_jitable
+def _weighted_moments(om, th, wn):
+    """Weighted mean of omega and the weighted sums of sin/cos theta (circular mean)."""
+    mw = 0.0
+    ss = 0.0
+    cs = 0.0
+    for i in range(om.shape[0]):
+        mw += wn[i] * om[i]
+        ss += wn[i] * math.sin(th[i])
+        cs += wn[i] * math.cos(th[i])
+    return mw, ss, cs
+
+
+@register_jitable
 def point_estimate(om, th, wn, mode, rng_point, out):
     """(omega, theta) point estimate into ``out`` (2,): 0 mean, 1 random sample, 2 maximum.
 
@@ -227,13 +240,7 @@ def point_estimate(om, th, wn, mode, rng_point, out):
         out[0] = om[j]
         out[1] = th[j]
     elif mode == 2:
-        mw = 0.0
-        ss = 0.0
-        cs = 0.0
-        for i in range(n):
-            mw += wn[i] * om[i]
-            ss += wn[i] * math.sin(th[i])
-            cs += wn[i] * math.cos(th[i])
+        mw, ss, cs = _weighted_moments(om, th, wn)
         vw = 0.0
         for i in range(n):
             vw += wn[i] * (om[i] - mw) * (om[i] - mw)
@@ -267,13 +274,7 @@ def point_estimate(om, th, wn, mode, rng_point, out):
         out[0] = om[j]
         out[1] = th[j]
     else:
-        mw = 0.0
-        ss = 0.0
-        cs = 0.0
-        for i in range(n):
-            mw += wn[i] * om[i]
-            ss += wn[i] * math.sin(th[i])
-            cs += wn[i] * math.cos(th[i])
+        mw, ss, cs = _weighted_moments(om, th, wn)
         out[0] = mw
         out[1] = math.atan2(ss, cs)
     lo = math.inf
