@@ -2,11 +2,11 @@
 
 What is timed (all single-threaded unless stated, median of ``--repeats``):
 
-* Ob1 bootstrap (seed 000 Alg. 1) at (M, N_p) = (1000, 1000), (500, 1000), (500, 500) and
+* Ob1 bootstrap ([Embedded] Alg. 1) at (M, N_p) = (1000, 1000), (500, 1000), (500, 500) and
   N_p = 100000 (M = 100), each backend x dtype;
 * the *irreducible work* floor in the same run: one standard-normal draw and one exp per
   particle-step, as a numba loop and as vectorised NumPy, so results read as ratios;
-* MultiPDF (seed 001 Alg. 2) on numba with N_f = 2 at N_p = 200000: 1 thread vs all cores;
+* MultiPDF ([MultiPDF] Alg. 2) on numba with N_f = 2 at N_p = 200000: 1 thread vs all cores;
 * the PMSM SMC step with the optimal proposal (thesis §4.2.1, 60 particles) against the
   drive's 125 us sampling period;
 * optionally the ``particles`` library's bootstrap filter on the same model, run by

@@ -1,4 +1,4 @@
-"""Host timing and energy helpers for the platform comparison (seed 000 §5.1, Fig. 5, Table 3).
+"""Host timing and energy helpers for the platform comparison ([Embedded] §5.1, Fig. 5, Table 3).
 
 * :func:`time_filter`: median wall time of repeated single-threaded ``run_filter`` calls
   (numba compilation / cache loading happens in an untimed warm-up run);

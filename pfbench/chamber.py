@@ -1,4 +1,4 @@
-"""Simulated heating/cooling chamber (the *plant*) for seed 000 §3-§5.3.
+"""Simulated heating/cooling chamber (the *plant*) for [Embedded] §3-§5.3.
 
 This is deliberately **not** the filter's model (eqs. 10/12): a continuous-time lumped thermal
 network integrated with RK4 at ``dt`` = 0.1 s, containing what §6 says the simple models ignore:

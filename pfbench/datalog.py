@@ -1,4 +1,4 @@
-"""CSV logs of the chamber (seed 000 §3): ``load_log(path, model) -> Trajectory``.
+"""CSV logs of the chamber ([Embedded] §3): ``load_log(path, model) -> Trajectory``.
 
 Format: a header line, then one row per sample (comma separated)::
 
@@ -105,7 +105,7 @@ def load_log(path, model: StateSpaceModel) -> Trajectory:
 
     Models may define ``log_arrays(cols) -> (y, u)`` (e.g. thermal_outdoor uses y - t_out) and
     ``init_from_log(cols)`` (the thermal models initialise the PF from the first measurement
-    y(0), seed 000 §4.2) -- note this sets the model's y0 in place.
+    y(0), [Embedded] §4.2) -- note this sets the model's y0 in place.
     """
     cols = read_log(path, required=_required(model))
     if hasattr(model, "log_arrays"):

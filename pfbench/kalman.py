@@ -9,8 +9,8 @@ Conventions (identical to :class:`pfbench.models.linear_gaussian.LinearGaussian`
 
 References
 ----------
-seed 002 (thesis), eqs. 2.29-2.33 (Kalman filter) and 2.36-2.38 (extended Kalman filter);
-seed 004 (rtd), §2.6 eqs. 41-42 (DARE by the generalized Schur method) and §4.2.1 (time-varying KF).
+[Thesis], eqs. 2.29-2.33 (Kalman filter) and 2.36-2.38 (extended Kalman filter);
+[RTD] (rtd), §2.6 eqs. 41-42 (DARE by the generalized Schur method) and §4.2.1 (time-varying KF).
 """
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def gaussian_logpdf(r: np.ndarray, S: np.ndarray) -> float:
 
 
 def _update(xp, Pp, y, C, R, yhat):
-    """Measurement update (seed 002, eqs. 2.31-2.33) in Joseph form for symmetry/PSD."""
+    """Measurement update ([Thesis], eqs. 2.31-2.33) in Joseph form for symmetry/PSD."""
     S = _sym(C @ Pp @ C.T + R)
     PCt = Pp @ C.T
     try:
@@ -97,7 +97,7 @@ def _update(xp, Pp, y, C, R, yhat):
 def kalman_filter(A, C, Q, R, x0, P0, y, *, B=None, D=None, u=None) -> KalmanResult:
     """Linear Kalman filter with the exact log-likelihood.
 
-    Implements seed 002, eqs. 2.29-2.33: prediction ``x_{t|t-1} = A x_{t-1} + B u_t`` (2.29),
+    Implements [Thesis], eqs. 2.29-2.33: prediction ``x_{t|t-1} = A x_{t-1} + B u_t`` (2.29),
     ``P_{t|t-1} = A P A^T + Q`` (2.30), gain ``K = P C^T (C P C^T + R)^-1`` (2.31), and the update
     of mean (2.32) and covariance (2.33). The log-likelihood increments are
     ``log N(y_t; C x_{t|t-1} + D u_t, C P_{t|t-1} C^T + R)``.
@@ -169,7 +169,7 @@ def filter_model(model, y, u=None) -> KalmanResult:
 # ----------------------------------------------------------------------------- EKF
 
 def ekf_predict(x, P, f: Callable, F_jac: Callable, Q, u=None, t: int = 0):
-    """EKF time update (seed 002, eqs. 2.36 and 2.38).
+    """EKF time update ([Thesis], eqs. 2.36 and 2.38).
 
     ``x_{t|t-1} = f(x_{t-1}, u_t, t)``, ``P_{t|t-1} = F P F^T + Q`` with ``F = df/dx`` at x_{t-1}
     (eq. 2.36). f and F_jac take (x, u, t) for one state vector.
@@ -186,7 +186,7 @@ def ekf_predict(x, P, f: Callable, F_jac: Callable, Q, u=None, t: int = 0):
 
 
 def ekf_update(x, P, y, h: Callable, H_jac: Callable, R, u=None, t: int = 0):
-    """EKF measurement update (seed 002, eq. 2.37 linearisation + eqs. 2.31-2.33).
+    """EKF measurement update ([Thesis], eq. 2.37 linearisation + eqs. 2.31-2.33).
 
     ``H = dh/dx`` at the predicted state (eq. 2.37), ``K = P H^T (H P H^T + R)^-1``,
     ``x = x + K (y - h(x))``, ``P = (I - K H) P`` (Joseph form).
@@ -205,7 +205,7 @@ def ekf_update(x, P, y, h: Callable, H_jac: Callable, R, u=None, t: int = 0):
 
 
 def ekf(f, F_jac, h, H_jac, Q, R, x0, P0, y, u=None) -> KalmanResult:
-    """Extended Kalman filter (seed 002, eqs. 2.36-2.38) built on :func:`ekf_predict` /
+    """Extended Kalman filter ([Thesis], eqs. 2.36-2.38) built on :func:`ekf_predict` /
     :func:`ekf_update`; same time convention as :func:`kalman_filter`.
 
     ``loglik`` is the Gaussian approximation sum_t log N(innovation_t; 0, S_t).
@@ -254,11 +254,11 @@ def _pbh_uncontrollable(A: np.ndarray, B: np.ndarray, tol: float) -> list:
 def dare(A, B, Q, R, *, unit_circle_tol: float = 1e-7, check: bool = True) -> np.ndarray:
     """Stabilising solution of the discrete algebraic Riccati equation by the generalized Schur method.
 
-    Solves (seed 004, eq. 38)::
+    Solves ([RTD], eq. 38)::
 
         X = A^T X A - A^T X B (R + B^T X B)^-1 B^T X A + Q
 
-    following §2.6 of seed 004: with ``S = B R^-1 B^T`` (eq. 40) form the symplectic pencil
+    following §2.6 of [RTD]: with ``S = B R^-1 B^T`` (eq. 40) form the symplectic pencil
     ``P_DARE - lambda N_DARE`` with ``P_DARE = [[A, 0], [-Q, I]]`` (eq. 41) and
     ``N_DARE = [[I, S], [0, A^T]]`` (eq. 42); bring it to generalized real Schur form by the QZ
     algorithm and reorder so that the n eigenvalues inside the unit circle come first
@@ -266,7 +266,7 @@ def dare(A, B, Q, R, *, unit_circle_tol: float = 1e-7, check: bool = True) -> np
     (eq. 47) the solution is ``X = Z21 Z11^-1``.
 
     For the Kalman filter of ``x' = A x + w, y = C x + v`` call ``dare(A.T, C.T, Q, R)``: X is then the
-    steady-state *prior* error covariance P[n|n-1] (seed 004, eq. 37).
+    steady-state *prior* error covariance P[n|n-1] ([RTD], eq. 37).
 
     Parameters
     ----------
@@ -340,7 +340,7 @@ def dare(A, B, Q, R, *, unit_circle_tol: float = 1e-7, check: bool = True) -> np
 
 
 def dare_scalar(a: float, b: float, q: float, r: float) -> float:
-    """Closed-form stabilising solution of the scalar DARE (seed 004, eq. 38 with n = m = 1).
+    """Closed-form stabilising solution of the scalar DARE ([RTD], eq. 38 with n = m = 1).
 
     ``x = a^2 x - a^2 b^2 x^2 / (r + b^2 x) + q`` is the quadratic
     ``b^2 x^2 + (r (1 - a^2) - q b^2) x - q r = 0`` whose non-negative root is returned.
@@ -364,7 +364,7 @@ def dare_scalar(a: float, b: float, q: float, r: float) -> float:
 
 
 def chapter_riccati_scalar(F: float, H: float, Q: float, R: float) -> float:
-    """The closed form used by the chapter's microcontroller code (seed 004, §6.1).
+    """The closed form used by the chapter's microcontroller code ([RTD], §6.1).
 
     ``P_inf = (sqrt(H^2 Q R + F^2 R^2) + F R) / H^2`` with ``F = -Bc`` (RC rate) and ``H = 260``.
     This is the positive root of the *continuous-time* scalar Riccati equation
@@ -378,7 +378,7 @@ def chapter_riccati_scalar(F: float, H: float, Q: float, R: float) -> float:
 
 
 def steady_state_gain(A, C, Q, R):
-    """Steady-state Kalman filter from the DARE (seed 004, eqs. 30, 37).
+    """Steady-state Kalman filter from the DARE ([RTD], eqs. 30, 37).
 
     Returns
     -------
@@ -425,7 +425,7 @@ def _prep_loop(A, B, C, Q, R, u, y, x0):
 
 
 def time_varying_kf(A, B, C, Q, R, u, y, *, x0=None, P0=None) -> RecursiveKFResult:
-    """Time-varying Kalman filter, the loop of seed 004 §4.2.1 (measurement update, then time update).
+    """Time-varying Kalman filter, the loop of [RTD] §4.2.1 (measurement update, then time update).
 
     For i = 0..n-1::
 
@@ -459,7 +459,7 @@ def time_varying_kf(A, B, C, Q, R, u, y, *, x0=None, P0=None) -> RecursiveKFResu
 
 
 def steady_state_kf(A, B, C, Q, R, u, y, *, x0=None) -> RecursiveKFResult:
-    """Steady-state Kalman filter with the DARE gain (seed 004 §4.2.1 second loop / §6.1 ``x_inf``).
+    """Steady-state Kalman filter with the DARE gain ([RTD] §4.2.1 second loop / §6.1 ``x_inf``).
 
     Same loop as :func:`time_varying_kf` with the constant gain ``M_inf`` of
     :func:`steady_state_gain`; ``errcov`` is the constant ``C P[n|n] C^T``.

@@ -1,4 +1,4 @@
-"""Estimation-quality metrics (seed 001 eqs. 11-14)."""
+"""Estimation-quality metrics ([MultiPDF] eqs. 11-14)."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,29 +17,29 @@ def _pair(est, truth):
 
 
 def mse(est, truth) -> np.ndarray:
-    """MSE_j = (1/M) sum_k (x_hat_j^(k) - x_j^(k))^2 per state (seed 001 eq. 13)."""
+    """MSE_j = (1/M) sum_k (x_hat_j^(k) - x_j^(k))^2 per state ([MultiPDF] eq. 13)."""
     est, truth = _pair(est, truth)
     return np.mean((est - truth) ** 2, axis=0)
 
 
 def rmse(est, truth) -> np.ndarray:
-    """RMSE_j = sqrt(MSE_j) per state (seed 001 eq. 12)."""
+    """RMSE_j = sqrt(MSE_j) per state ([MultiPDF] eq. 12)."""
     return np.sqrt(mse(est, truth))
 
 
 def armse(est, truth) -> float:
-    """aRMSE = (1/N_x) sum_j RMSE_j (seed 001 eq. 11)."""
+    """aRMSE = (1/N_x) sum_j RMSE_j ([MultiPDF] eq. 11)."""
     return float(np.mean(rmse(est, truth)))
 
 
 def distance(est, truth) -> np.ndarray:
-    """d^(k) = ||x_hat^(k) - x^(k)||_2 per step (seed 001 eq. 14)."""
+    """d^(k) = ||x_hat^(k) - x^(k)||_2 per step ([MultiPDF] eq. 14)."""
     est, truth = _pair(est, truth)
     return np.sqrt(np.sum((est - truth) ** 2, axis=1))
 
 
 def mean_interval(values, z: float = 2.0) -> tuple[float, float, float]:
-    """Mean and the paper's band mean +- z sigma / sqrt(m) (seed 001 §5; z = 2 for ~95 %)."""
+    """Mean and the paper's band mean +- z sigma / sqrt(m) ([MultiPDF] §5; z = 2 for ~95 %)."""
     v = np.asarray(values, dtype=np.float64)
     v = v[np.isfinite(v)]
     m = v.size

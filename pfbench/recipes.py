@@ -37,10 +37,10 @@ from .errors import PfbenchError
 from .provenance import provenance
 
 PAPERS = {
-    "embedded": "Particle filter on an STM32F4 (seed 000)",
-    "multipdf": "MultiPDF particle filter (seed 001)",
-    "thesis": "Particle filters for optimal control under uncertainty (seed 002)",
-    "rtd": "Kalman filter for a resistance temperature detector (seed 004)",
+    "embedded": "Particle filter on an STM32F4 ([Embedded])",
+    "multipdf": "MultiPDF particle filter ([MultiPDF])",
+    "thesis": "Particle filters for optimal control under uncertainty ([Thesis])",
+    "rtd": "Kalman filter for a resistance temperature detector ([RTD])",
 }
 DEFAULT_PAPER = "embedded"
 

@@ -1,4 +1,4 @@
-"""Resampling schemes, NumPy reference implementations (seed 002 §2.5; seed 001 ref. [35]).
+"""Resampling schemes, NumPy reference implementations ([Thesis] §2.5; [MultiPDF] ref. [35]).
 
 Every scheme takes (possibly unnormalised) non-negative ``weights`` of length N and a
 ``numpy.random.Generator`` and returns N ancestor indices (int64, sorted ascending), except
@@ -46,7 +46,7 @@ def _search(cdf: np.ndarray, positions: np.ndarray) -> np.ndarray:
 
 
 def systematic(weights, rng: np.random.Generator) -> np.ndarray:
-    """Systematic resampling: positions (U + i) / N, one U ~ U[0, 1) (seed 000 Alg. 1 step 5)."""
+    """Systematic resampling: positions (U + i) / N, one U ~ U[0, 1) ([Embedded] Alg. 1 step 5)."""
     cdf = _cdf(weights)
     n = cdf.size
     u = rng.random()
@@ -63,14 +63,14 @@ def stratified(weights, rng: np.random.Generator) -> np.ndarray:
 
 
 def multinomial(weights, rng: np.random.Generator) -> np.ndarray:
-    """Multinomial resampling (seed 002 §2.5.1): N i.i.d. draws by inverse CDF."""
+    """Multinomial resampling ([Thesis] §2.5.1): N i.i.d. draws by inverse CDF."""
     cdf = _cdf(weights)
     n = cdf.size
     return np.sort(_search(cdf, rng.random(n) * cdf[-1]))
 
 
 def residual_counts(weights) -> tuple[np.ndarray, np.ndarray]:
-    """floor(N w_i) offspring and the residuals N w_i - floor(N w_i) (seed 002 §2.5.2)."""
+    """floor(N w_i) offspring and the residuals N w_i - floor(N w_i) ([Thesis] §2.5.2)."""
     cdf = _cdf(weights)
     n = cdf.size
     w = np.asarray(weights, dtype=np.float64)
@@ -80,7 +80,7 @@ def residual_counts(weights) -> tuple[np.ndarray, np.ndarray]:
 
 
 def residual(weights, rng: np.random.Generator) -> np.ndarray:
-    """Residual resampling with a random (multinomial) remainder (seed 002 §2.5.2)."""
+    """Residual resampling with a random (multinomial) remainder ([Thesis] §2.5.2)."""
     counts, res = residual_counts(weights)
     n = counts.size
     r = n - int(counts.sum())
@@ -124,7 +124,7 @@ def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:
 
 
 def effective_sample_size(weights) -> float:
-    """N_eff = 1 / sum w_i^2 for normalised weights (seed 001 eq. 8; seed 002 eq. 2.14)."""
+    """N_eff = 1 / sum w_i^2 for normalised weights ([MultiPDF] eq. 8; [Thesis] eq. 2.14)."""
     w = np.asarray(weights, dtype=np.float64)
     total = np.cumsum(w)[-1]
     wn = w / total
@@ -138,7 +138,7 @@ def unit_ball_volume(n_x: int) -> float:
 
 
 def h_opt(n_particles: int, n_x: int) -> float:
-    """Optimal Epanechnikov bandwidth h_opt = A N^(-1/(n_x+4)) (seed 002 eq. 2.17),
+    """Optimal Epanechnikov bandwidth h_opt = A N^(-1/(n_x+4)) ([Thesis] eq. 2.17),
     A = [8 c_nx^-1 (n_x + 4) (2 sqrt(pi))^n_x]^(1/(n_x+4))."""
     a = (8.0 / unit_ball_volume(n_x) * (n_x + 4) * (2.0 * math.sqrt(math.pi)) ** n_x) ** (1.0 / (n_x + 4))
     return a * n_particles ** (-1.0 / (n_x + 4))
@@ -158,7 +158,7 @@ def epanechnikov(rng: np.random.Generator, n: int, n_x: int) -> np.ndarray:
 
 def regularized(particles, weights, rng: np.random.Generator, scheme: str = "systematic",
                 bandwidth: float | None = None) -> np.ndarray:
-    """Regularized resampling (seed 002 Alg. 4): resample, then jitter with the Epanechnikov kernel.
+    """Regularized resampling ([Thesis] Alg. 4): resample, then jitter with the Epanechnikov kernel.
 
     x_i* = x_{a_i} + h_opt D eps_i, with D D^T the weighted empirical covariance and
     eps_i ~ Epanechnikov. Draw order: the scheme's draws, then :func:`epanechnikov`'s.

@@ -1,4 +1,4 @@
-"""Resistance temperature detector (RTD) models of seed 004 (Ulin-Avila & Ponce-Hernandez, 2021).
+"""Resistance temperature detector (RTD) models of [RTD] (Ulin-Avila & Ponce-Hernandez, 2021).
 
 * the identified second-order model: continuous transfer function (eq. 52)
   ``G(s) = (2.278 s + 0.1711) / (s^2 + 2.488 s + 0.1695)`` (poles -2.4179, -0.0701), discretised
@@ -123,7 +123,7 @@ class RCFit:
 
 
 def fit_exponential(t, y) -> RCFit:
-    """Log-linear least squares of seed 004 eqs. 55-56.
+    """Log-linear least squares of [RTD] eqs. 55-56.
 
     ``ln y_i = c + B t_i`` (eq. 55), ``B = (n S_ty - S_t S_y) / (n S_tt - S_t^2)``,
     ``c = (S_tt S_y - S_t S_ty) / (n S_tt - S_t^2)`` (eq. 56), ``A = exp(c)``.
@@ -181,7 +181,7 @@ def rc_model(tau: float, Ts: float = TS, gain: float = 1.0) -> DiscreteModel:
 
 def simulate_fig5(n: int = 600, Qu: float = 2.3, R: float = 1.0, u: float = U_STEP, seed: int = 0,
                   model: DiscreteModel | None = None):
-    """The simulation of seed 004 §4.2.1 / §5: second-order model driven by ``U + w`` (w ~ N(0, Qu)),
+    """The simulation of [RTD] §4.2.1 / §5: second-order model driven by ``U + w`` (w ~ N(0, Qu)),
     measured with v ~ N(0, R); time-varying KF with ``Q = B Qu B^T`` and ``P0 = B Qu B^T``.
 
     Returns a dict of arrays: t, u, y_true, y_meas, yest, errcov, gain (first gain component).
@@ -230,7 +230,7 @@ class BoundaryLayer:
 
 def boundary_layer(y, u, rc: DiscreteModel, qr_a=(1.0, 0.05), qr_b=(1e-4, 0.05), qr_kf=(1e-4, 1.0),
                    ) -> BoundaryLayer:
-    """Two first-order steady-state Kalman predictors with different (Q, R) (seed 004 §6.1, §8) and the
+    """Two first-order steady-state Kalman predictors with different (Q, R) ([RTD] §6.1, §8) and the
     time-varying KF, on the RC model ``rc`` driven by the bath temperature u.
 
     Q enters as ``B Q B`` like the chapter's code (``P = A*P*A + B*Q*B``). The predictors output

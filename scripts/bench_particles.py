@@ -1,4 +1,4 @@
-"""Time the `particles` library's bootstrap filter on Ob1 (seed 000 eq. 6), for `pfbench bench`.
+"""Time the `particles` library's bootstrap filter on Ob1 ([Embedded] eq. 6), for `pfbench bench`.
 
 Runs in its own environment (.venv-particles, created by `make bench`) because `particles`
 pins an older NumPy. Prints one JSON line: {"ns_per_particle_step": ..., "version": ...}.

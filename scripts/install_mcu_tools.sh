@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Install the Cortex-M4 cross toolchain used by `pfbench mcu emulate` (issue 8).
+# Install the Cortex-M4 cross toolchain used by `pfbench mcu emulate`.
 # Idempotent: returns at once when everything is already present.
 #   Debian packages: gcc-arm-none-eabi, libnewlib-arm-none-eabi, libnewlib-dev
 #   Python package (project venv): unicorn (the emulator; symbols come from arm-none-eabi-objdump)

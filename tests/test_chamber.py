@@ -1,4 +1,4 @@
-"""The simulated chamber (plant) of seed 000 §3-§5.3."""
+"""The simulated chamber (plant) of [Embedded] §3-§5.3."""
 import numpy as np
 import pytest
 

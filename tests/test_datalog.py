@@ -27,7 +27,7 @@ def test_roundtrip_and_initial_measurement(tmp_path):
     tr = load_log(p, m)
     np.testing.assert_allclose(tr.y[:, 0], run.y, atol=1e-12)
     np.testing.assert_allclose(tr.u, np.column_stack([run.u1, run.u2, run.mode]))
-    assert np.all(np.isnan(tr.x)) and m.y0 == run.y[0]   # PF starts at y(0), seed 000 §4.2
+    assert np.all(np.isnan(tr.x)) and m.y0 == run.y[0]   # PF starts at y(0), [Embedded] §4.2
     mo = models.get("thermal_outdoor")
     tro = load_log(p, mo)
     np.testing.assert_allclose(tro.y[:, 0], run.y - run.t_out, atol=1e-12)

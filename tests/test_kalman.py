@@ -129,7 +129,7 @@ def test_ekf_equals_kf_on_linear_model():
 
 
 def test_ekf_step_by_hand():
-    # x' = sin(x) + w, y = x^2 + v: one predict + update written out (seed 002, eqs. 2.36-2.38)
+    # x' = sin(x) + w, y = x^2 + v: one predict + update written out ([Thesis], eqs. 2.36-2.38)
     x, P, Q, R, y = 0.7, 0.2, 0.05, 0.1, 0.9
     xp, Pp = kalman.ekf_predict(np.array([x]), np.array([[P]]), lambda x, u, t: np.sin(x),
                                 lambda x, u, t: np.array([[np.cos(x[0])]]), [[Q]])

@@ -12,9 +12,9 @@ all steps, drawing every random number from one ``numpy.random.Generator`` in th
 The numba backend (``numba_kernel.tmpl``) follows the same order with the same operations,
 which is what makes the two backends agree under common random numbers.
 
-Methods (codes shared with the numba kernel): 0 bootstrap (resample every step, seed 000
-Alg. 1; seed 001 Alg. 1), 1 SIR (resample when N_eff < threshold, seed 001 eq. 8; seed 002
-Alg. 3), 2 SIS (never resample, seed 002 Alg. 2), 3 ASIR (auxiliary SIR, seed 002 Alg. 6:
+Methods (codes shared with the numba kernel): 0 bootstrap (resample every step, [Embedded]
+Alg. 1; [MultiPDF] Alg. 1), 1 SIR (resample when N_eff < threshold, [MultiPDF] eq. 8; [Thesis]
+Alg. 3), 2 SIS (never resample, [Thesis] Alg. 2), 3 ASIR (auxiliary SIR, [Thesis] Alg. 6:
 first-stage weights p(y_t | mu_t^i) at mu_t^i = f(x_{t-1}^i) with zero noise).
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Control of the PMSM drive under uncertainty (seed 002, thesis §4.3-4.4).
+"""Control of the PMSM drive under uncertainty ([Thesis], thesis §4.3-4.4).
 
 * :mod:`.pi` - PI control in the d-q frame (eqs. 4.27-4.39);
 * :mod:`.cautious` - cautious control (eqs. 4.50-4.65, approximation 4.57) and certainty

@@ -1,5 +1,5 @@
 """Cautious control (CC) and certainty equivalence control (CEC) of the PMSM
-(seed 002, thesis §4.3.2-4.3.3, eqs. 4.50-4.65).
+([Thesis], thesis §4.3.2-4.3.3, eqs. 4.50-4.65).
 
 CC minimises the expected n-step loss (eq. 4.50)
     J = u_t' Gamma u_t + E sum_{k=1}^{n} (x_{t+k} - xbar_{t+k})' Xi (x_{t+k} - xbar_{t+k})

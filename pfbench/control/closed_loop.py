@@ -1,4 +1,4 @@
-"""Closed-loop simulation of the sensorless PMSM start-up (seed 002, thesis §4.4).
+"""Closed-loop simulation of the sensorless PMSM start-up ([Thesis], thesis §4.4).
 
 One run: x^(0) from the prior (§4.4.1), then for t = 0..M-1
 

@@ -1,4 +1,4 @@
-"""Scenario, tracking loss and the failure definition (seed 002, thesis §4.1.2, §4.4.1).
+"""Scenario, tracking loss and the failure definition ([Thesis], thesis §4.1.2, §4.4.1).
 
 Tracking loss (eq. 4.16-4.17): sum_t u_t' Gamma u_t + (x_t - xbar_t)' Xi (x_t - xbar_t) with
 Gamma = gamma I (gamma = 0.1, the value quoted in §4.3.2) and Xi = diag(0, 0, 1, 0), i.e.

@@ -1,4 +1,4 @@
-"""PI control of the PMSM in the d-q frame (seed 002, thesis §4.3.1, eqs. 4.27-4.39).
+"""PI control of the PMSM in the d-q frame ([Thesis], thesis §4.3.1, eqs. 4.27-4.39).
 
     i_d = i_a cos th + i_b sin th,  i_q = i_b cos th - i_a sin th            (4.27-4.28)
     i_q_ref = PI(w_ref - w, P_w, I_w)                                       (4.29)

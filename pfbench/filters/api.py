@@ -14,7 +14,7 @@ same generators, so both backends give the same estimates.
   so the sub-filters can run in parallel threads (numba releases the GIL). Still reproducible
   for a given (seed, N_f), and still identical across backends.
 
-MultiPDF (seed 001 Alg. 2): N_f independent bootstrap sub-filters with round(N_p / N_f)
+MultiPDF ([MultiPDF] Alg. 2): N_f independent bootstrap sub-filters with round(N_p / N_f)
 particles each; the estimate at every step is the mean of the sub-filter estimates (eq. 9).
 Its ``loglik`` is log of the mean of the sub-filters' likelihood estimates (each unbiased).
 
@@ -126,9 +126,9 @@ def run_filter(model: StateSpaceModel, y, u=None, *, method: str = "bootstrap", 
 
     Parameters
     ----------
-    method : ``bootstrap`` (resample every step, seed 000 Alg. 1), ``sir`` (resample when
-        N_eff < ``ess_threshold``, default N/2; seed 001 eq. 8), ``sis`` (never resample),
-        ``multipdf`` (seed 001 Alg. 2) or ``asir`` (seed 002 Alg. 6).
+    method : ``bootstrap`` (resample every step, [Embedded] Alg. 1), ``sir`` (resample when
+        N_eff < ``ess_threshold``, default N/2; [MultiPDF] eq. 8), ``sis`` (never resample),
+        ``multipdf`` ([MultiPDF] Alg. 2) or ``asir`` ([Thesis] Alg. 6).
     n_particles : N_p, total number of particles.
     n_filters : N_f, MultiPDF sub-filters (round(N_p/N_f) particles each); 1 otherwise.
     resampling : one of :data:`pfbench.resampling.SCHEMES`.

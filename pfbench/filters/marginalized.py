@@ -1,4 +1,4 @@
-"""Marginalized (Rao-Blackwellized) particle filter, MPF (seed 001 §5, its refs. [19, 21]).
+"""Marginalized (Rao-Blackwellized) particle filter, MPF ([MultiPDF] §5, its refs. [19, 21]).
 
 The state splits into a nonlinear part x^n (particles) and a part x^l that enters the
 transition linearly (a Kalman filter per particle)::
@@ -7,7 +7,7 @@ transition linearly (a Kalman filter per particle)::
     x^l_t = f^l(x^n_{t-1}, u_t) + A^l x^l_{t-1} + w^l,    w^l ~ N(0, Q^l)
     y_t   = h(x^n_t, x^l_t) + e,                          e ~ N(0, diag R)
 
-Algorithm (Schön, Gustafsson & Nordlund 2005, Alg. 1; seed 001 ref. [19]) per step t:
+Algorithm (Schön, Gustafsson & Nordlund 2005, Alg. 1; [MultiPDF] ref. [19]) per step t:
 
 1. sample x^n_t ~ N(f^n + A^n m, N),  N = A^n P A^n' + Q^n  (per particle, Cholesky of N);
 2. Kalman time update that also uses x^n_t as a measurement of x^l_{t-1}:
@@ -18,11 +18,11 @@ Algorithm (Schön, Gustafsson & Nordlund 2005, Alg. 1; seed 001 ref. [19]) per s
    an EKF for the linear states, §1): exact when h is linear in x^l. The outputs are processed
    one at a time (R is diagonal), which equals the batch update for a fixed linearisation;
 4. estimate = weighted mean of (x^n, m); systematic resampling every step (as the bootstrap
-   filter of seed 001 Alg. 1).
+   filter of [MultiPDF] Alg. 1).
 
 When every state is linear in the transition (Ob2, Ob3 and the linear-Gaussian model) there is
 no x^n: every "particle" carries the same Kalman/EKF recursion, so the MPF is exactly the
-(E)KF and its result does not depend on N_p (seed 001 §5: "the performance of MPF is
+(E)KF and its result does not depend on N_p ([MultiPDF] §5: "the performance of MPF is
 independent of the number of particles") -- we run one copy. On a linear-Gaussian model the
 MPF therefore equals the exact Kalman filter.
 

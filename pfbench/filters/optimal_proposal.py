@@ -1,4 +1,4 @@
-"""SMC with the optimal proposal for the PMSM drive (seed 002, thesis §4.2.1, eqs. 4.22-4.25).
+"""SMC with the optimal proposal for the PMSM drive ([Thesis], thesis §4.2.1, eqs. 4.22-4.25).
 
 For a model x_t = g(x_{t-1}, u_{t-1}) + w, y_t = H x_t + v with Gaussian w ~ N(0, Q),
 v ~ N(0, R) the optimal importance density is Gaussian (eqs. 4.22-4.24)::
@@ -224,8 +224,8 @@ def _weighted_moments(om, th, wn):
 def point_estimate(om, th, wn, mode, rng_point, out):
     """(omega, theta) point estimate into ``out`` (2,): 0 mean, 1 random sample, 2 maximum.
 
-    Also returns the spread (omega_min, omega_max, max |wrap(theta_i - theta_hat)|) via
-    out[2:5] for plotting bounds.
+    Also returns the spread (omega_min, omega_max, max |wrap(theta_i - theta_hat)|) over the
+    particles with normalised weight >= 1e-4 via out[2:5], for plotting bounds.
     """
     n = om.shape[0]
     if mode == 1:
@@ -281,6 +281,8 @@ def point_estimate(om, th, wn, mode, rng_point, out):
     hi = -math.inf
     sp = 0.0
     for i in range(n):
+        if wn[i] < 1e-4:          # bounds of the distribution: particles with weight >= 1e-4
+            continue
         lo = min(lo, om[i])
         hi = max(hi, om[i])
         sp = max(sp, abs(_wrap(th[i] - out[1])))

@@ -92,7 +92,7 @@ def _format(r: dict) -> str:
         f"{r['model']} {r['method']}" + (f" (N_f={r['n_filters']})" if r["method"] == "multipdf" else "")
         + f", M={r['n_steps']} steps, N_p={r['n_particles']} particles, {r['precision']} @ {r['clock_mhz']:g} MHz",
         f"predicted time : {r['predicted_ms']:,.1f} ms"
-        + (f"  (instruction-table {r['raw_ms']:,.1f} ms x efficiency {r['efficiency']:.3f} fitted on seed 000 Table 2)"
+        + (f"  (instruction-table {r['raw_ms']:,.1f} ms x efficiency {r['efficiency']:.3f} fitted on [Embedded] Table 2)"
            if r["calibrated"] else "  (uncalibrated)"),
         f"cycles/particle-step: {r['cycles_per_particle_step']:,.0f}",
         f"energy         : {r['energy_wh']:.3g} Wh at {r['board_power_w']:g} W board power",
@@ -113,7 +113,7 @@ def _format(r: dict) -> str:
 @click.option("--cycles", "cycles_file", type=click.Path(dir_okay=False), default=None)
 @click.option("--json", "as_json", is_flag=True)
 def calibrate(cycles_file, as_json):
-    """Fit the per-precision efficiency on seed 000 Table 2; leave-one-out errors and ratios."""
+    """Fit the per-precision efficiency on [Embedded] Table 2; leave-one-out errors and ratios."""
     from .costmodel import calibrate as _cal
 
     c = _cal(cycles_file)

@@ -1,4 +1,4 @@
-"""Cortex-M4 (STM32F407 @ 168 MHz) time, energy and memory model (seed 000 §5.1, Tables 1-3).
+"""Cortex-M4 (STM32F407 @ 168 MHz) time, energy and memory model ([Embedded] §5.1, Tables 1-3).
 
 time = efficiency[precision] * sum_op count(op) * cycles(op, precision) / clock
 
@@ -7,7 +7,7 @@ time = efficiency[precision] * sum_op count(op) * cycles(op, precision) / clock
 * ``cycles(op, precision)``: a data table (:mod:`pfbench.mcu.cycles`) for ``float`` (FPU) and
   ``double`` (soft-float), replaceable by the user;
 * ``efficiency``: ONE fitted factor per precision (2 parameters in all), fitted on the six
-  cells of seed 000 Table 2 by least squares in log space, i.e. the geometric mean of
+  cells of [Embedded] Table 2 by least squares in log space, i.e. the geometric mean of
   published / raw-predicted time. It absorbs what the instruction table does not see (pipeline
   stalls, flash wait states, loop overhead, register spills, what the compiler removed).
   :func:`calibrate` reports the fit, the leave-one-out error of every cell and the predicted
@@ -25,12 +25,12 @@ from ..errors import PfbenchError
 from . import counting
 from .cycles import PRECISIONS, CycleTable, cycles_of, cycles_to_ms, load_table, primitive_cycles
 
-#: seed 000 Table 2: (M iterations, N_p particles) -> (D(S) ms, D(O) ms), STM32F407 @ 168 MHz
+#: [Embedded] Table 2: (M iterations, N_p particles) -> (D(S) ms, D(O) ms), STM32F407 @ 168 MHz
 TABLE2 = {(500, 500): (23247.0, 640.0), (500, 1000): (46374.0, 1376.0), (1000, 1000): (92950.0, 3112.0)}
-#: seed 000 Table 3 (M = N_p = 1000): platform -> (processing time s, energy Wh)
+#: [Embedded] Table 3 (M = N_p = 1000): platform -> (processing time s, energy Wh)
 TABLE3 = {"A": (0.249, 0.0068), "B": (0.260, 0.0030), "C": (1.767, 0.0155),
           "D(O)": (3.110, 0.0012), "D(S)": (91.750, 0.0358)}
-#: seed 000 §5.1 text: float/double ratios D(S)/D(O) per Table 2 cell (computed: 36.3, 33.7, 29.9)
+#: [Embedded] §5.1 text: float/double ratios D(S)/D(O) per Table 2 cell (computed: 36.3, 33.7, 29.9)
 PAPER_RATIOS = {k: v[0] / v[1] for k, v in TABLE2.items()}
 BOARD_POWER_W = 1.39
 CLOCK_MHZ = 168.0
@@ -133,7 +133,7 @@ def _calibrate_cached(table_key: str) -> dict:
         r["loo_ratio_error"] = r["loo_ratio"] / r["published_ratio"] - 1.0
     return {"efficiency": eff, "n_parameters": len(eff), "cells": cells, "ratios": ratios,
             "max_abs_loo_error": max(abs(c["loo_error"]) for c in cells),
-            "method": "one efficiency factor per precision, least squares in log space on seed 000 "
+            "method": "one efficiency factor per precision, least squares in log space on [Embedded] "
                       "Table 2 (Ob1, bootstrap, systematic resampling, 168 MHz)",
             "cycles_table": table.path}
 
@@ -190,7 +190,7 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
     ----------
     model : registered model name (or a model instance).
     precision : ``float`` (FPU, the paper's optimised build D(O)) or ``double`` (soft-float, D(S)).
-    clock_mhz : core clock (default 168, the STM32F407 of seed 000 Table 1).
+    clock_mhz : core clock (default 168, the STM32F407 of [Embedded] Table 1).
     cycles : path of a cycle table JSON (default: the built-in one) or a :class:`CycleTable`.
     calibrated : apply the Table-2 efficiency factor of ``precision`` (see :func:`calibrate`).
     memory : refuse (PfbenchError) configurations whose arrays exceed the 192 kB RAM.

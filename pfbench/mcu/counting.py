@@ -7,7 +7,7 @@ runs) on :class:`CountingArray` s - an ``ndarray`` subclass whose ``__array_ufun
 store - with a :class:`CountingGenerator` that records uniform and normal draws. While
 counting, the module-level ``np`` of the engine and of :mod:`pfbench.resampling` is replaced
 by a proxy whose array constructors return :class:`CountingArray` s, so the engine's own
-normalisation / resampling work (seed 000 Alg. 1 steps 3-6) is counted as well as the
+normalisation / resampling work ([Embedded] Alg. 1 steps 3-6) is counted as well as the
 model's transition and likelihood.
 
 Counting conventions (what a C port on a Cortex-M4 would execute):

@@ -1,7 +1,7 @@
 """Cortex-M4 cycle tables (data, with their source) and cycle arithmetic.
 
 The built-in table is ``pfbench/mcu/data/cortex_m4_cycles.json`` (values from
-``shared/seeds/README.md``: FPv4-SP instruction timings for ``float`` with the FPU, and
+[Recovered]: FPv4-SP instruction timings for ``float`` with the FPU, and
 libgcc/newlib soft-float call costs for ``double``). A user table has the same layout::
 
     {"source": "...", "clock_mhz": 168,

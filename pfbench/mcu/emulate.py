@@ -1,6 +1,6 @@
 """Run the cross-compiled bootstrap filter in a Cortex-M4 emulator and count what it executes.
 
-The C filter (``pfbench/mcu/c/pf_ob1.c``: seed 000 Alg. 1 on Ob1 = seed 000 eq. 6 with the
+The C filter (``pfbench/mcu/c/pf_ob1.c``: [Embedded] Alg. 1 on Ob1 = [Embedded] eq. 6 with the
 object simulated inside, systematic resampling) is built by :mod:`pfbench.mcu.toolchain` as
 D(S) (``double``, soft double) or D(O) (``float``, FPv4-SP, -Ofast), loaded into the
 ``unicorn`` emulator (Cortex-M4 CPU model, Thumb + M-class) and run from ``Reset_Handler``
@@ -41,7 +41,7 @@ from . import toolchain
 
 TIMING_PATH = Path(__file__).resolve().parent / "data" / "cortex_m4_timing.json"
 
-#: Table 2 of seed 000 (published, ms): (M iterations, N particles) -> (D(S), D(O)).
+#: Table 2 of [Embedded] (published, ms): (M iterations, N particles) -> (D(S), D(O)).
 TABLE2 = {(500, 500): (23247.0, 640.0), (500, 1000): (46374.0, 1376.0),
           (1000, 1000): (92950.0, 3112.0)}
 

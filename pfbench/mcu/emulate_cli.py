@@ -44,7 +44,7 @@ def emulate(precision, steps, particles, configs, opt, clock_mhz, seed, as_json)
     Builds D(S)/D(O) (cached), runs small (M, N) in the unicorn emulator, counts executed
     instructions by class and function, converts them to cycles with the Cortex-M4 timing
     table, fits cost = a + b*M + c*M*N and extrapolates to (--steps, --particles) and to
-    Table 2 of seed 000.
+    Table 2 of [Embedded].
     """
     from . import emulate as E
     from . import toolchain
@@ -70,7 +70,7 @@ def emulate(precision, steps, particles, configs, opt, clock_mhz, seed, as_json)
                f"{res['predicted_ms']:.0f} ms (best-worst {res['predicted_ms_range'][0]:.0f}-"
                f"{res['predicted_ms_range'][1]:.0f}); analytic model "
                + (f"{an:.0f} ms" if an is not None else "n/a (pfbench.mcu.costmodel missing)"))
-    click.echo("\nTable 2 (seed 000)      paper ms   emulated ms   (best-worst)      analytic ms")
+    click.echo("\nTable 2 ([Embedded])      paper ms   emulated ms   (best-worst)      analytic ms")
     for row in res["table2"]:
         a = row["analytic_ms"]
         click.echo(f"  M={row['steps']:4d} N={row['particles']:4d}  {row['paper_ms']:10.0f}  "

@@ -1,6 +1,6 @@
 """Cross-compile the C bootstrap filter (``pfbench/mcu/c/``) for a bare-metal Cortex-M4(F).
 
-Two builds mirror seed 000, Table 2 (§5.1):
+Two builds mirror [Embedded], Table 2 (§5.1):
 
 * ``double`` = D(S): double everywhere, plain C library calls, no FPU, ``-O0`` (a "standard"
   IDE debug build; every double operation is a libgcc soft-float call);

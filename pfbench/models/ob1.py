@@ -1,4 +1,4 @@
-"""Ob1: the univariate nonstationary growth model (seed 000 eq. 6 = seed 001 Ob1).
+"""Ob1: the univariate nonstationary growth model ([Embedded] eq. 6 = [MultiPDF] Ob1).
 
     x^(k+1) = 0.5 x^(k) + 25 x^(k) / (1 + x^(k)^2) + 8 cos(1.2 k) + v^(k),   v ~ N(0, 10)
     y^(k)   = x^(k)^2 / 20 + n^(k),                                           n ~ N(0, 1)
@@ -16,7 +16,7 @@ from .base import LOG_2PI, StateSpaceModel
 
 @register("ob1")
 class Ob1(StateSpaceModel):
-    """Ob1 (seed 001 §4; seed 000 eq. 6). Parameters: ``q`` = var(v), ``r`` = var(n), ``x0``."""
+    """Ob1 ([MultiPDF] §4; [Embedded] eq. 6). Parameters: ``q`` = var(v), ``r`` = var(n), ``x0``."""
 
     n_x, n_y, n_u, n_noise = 1, 1, 0, 1
     state_names = ("x",)

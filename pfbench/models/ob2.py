@@ -1,4 +1,4 @@
-"""Ob2: five states, fifteen outputs (seed 001 §4).
+"""Ob2: five states, fifteen outputs ([MultiPDF] §4).
 
     x_i^(k+1) = 0.5 x_i^(k) + v_i,                                       v_i ~ N(0, 1)
     y_i      = 4 x_i + x_{i+1} / (1 + x_{i+2}^2) + 0.2 sin(x_{i+2} x_{i+3}) + n_i,   var 6

@@ -1,4 +1,4 @@
-"""Ob3, versions 1-5: a four-node network object (seed 001 §4, "Ob403" of its ref. [45]).
+"""Ob3, versions 1-5: a four-node network object ([MultiPDF] §4, "Ob403" of its ref. [45]).
 
     x_i^(k+1) = 0.9 x_i^(k) + v_i,        v_i ~ N(0, 1),  i = 1..4
     y_i       = h_i(x, mu) + n_i,          n ~ N(0, 1)
@@ -73,7 +73,7 @@ def ob3_h(x, version, mu, pi, pj):
 
 @register("ob3")
 class Ob3(StateSpaceModel):
-    """Ob3 (seed 001 §4) with ``version`` in 1..5."""
+    """Ob3 ([MultiPDF] §4) with ``version`` in 1..5."""
 
     n_x, n_u, n_noise = 4, 0, 4
     state_names = ("x1", "x2", "x3", "x4")

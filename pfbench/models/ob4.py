@@ -1,4 +1,4 @@
-"""Ob4: two states with a known random input (seed 001 §4).
+"""Ob4: two states with a known random input ([MultiPDF] §4).
 
     x_1^(k+1) = 0.5 (x_1^2)^(1/3) + 0.01 x_2 + 0.2 u + v_1
     x_2^(k+1) = 0.5 (x_2^2)^(1/3) + 0.01 x_1 + 0.2 u + v_2,      v ~ N(0, 1)

@@ -1,6 +1,6 @@
-"""Ob5: Inteco MLS2EM magnetic levitation, two electromagnets (seed 001 §4, Fig. 2, Table 3).
+"""Ob5: Inteco MLS2EM magnetic levitation, two electromagnets ([MultiPDF] §4, Fig. 2, Table 3).
 
-Continuous model (vendor manual; parameters recovered in ``shared/seeds/README.md``)::
+Continuous model (vendor manual; parameters recovered in [Recovered])::
 
     dx1 = x2                                     x1: ball distance from the upper magnet (m, down +)
     dx2 = -Fem1/m + g + Fem2/m                   x2: velocity (m/s)
@@ -10,7 +10,7 @@ Continuous model (vendor manual; parameters recovered in ``shared/seeds/README.m
     fi(z) = (fiP1/fiP2) exp(-z/fiP2)
     y1 = x1 + n1,  y2 = Fem1 + n2
 
-Discretisation: Euler at T_s = 0.1 ms (seed 001 §4), additive Gaussian process noise, then the
+Discretisation: Euler at T_s = 0.1 ms ([MultiPDF] §4), additive Gaussian process noise, then the
 constraints of §4: 0 <= x1 <= xd, i_min = 0.03884 <= x3, x4 <= 2.38 (inputs are clipped to
 [u_min, 1] = [0.00498, 1]).
 
@@ -48,7 +48,7 @@ from numba.extending import register_jitable
 from . import register
 from .base import StateSpaceModel, gaussian_loglik_diag
 
-# Vendor constants (shared/seeds/README.md)
+# Vendor constants ([Recovered])
 M_BALL = 0.0571
 G = 9.81
 FEMP1 = 1.7521e-2
@@ -120,7 +120,7 @@ def ob5_h(x):
 
 @register("ob5")
 class Ob5(StateSpaceModel):
-    """MLS2EM magnetic levitation (seed 001 Ob5); see the module docstring for every choice."""
+    """MLS2EM magnetic levitation ([MultiPDF] Ob5); see the module docstring for every choice."""
 
     n_x, n_y, n_u, n_noise = 4, 2, 2, 4
     state_names = ("x1", "x2", "x3", "x4")

@@ -1,4 +1,4 @@
-"""Permanent magnet synchronous motor (PMSM) drive, seed 002 (thesis) §4.1.
+"""Permanent magnet synchronous motor (PMSM) drive, [Thesis] §4.1.
 
 Simplified discrete model (thesis eqs. 4.11-4.14, Euler discretisation of eqs. 4.1-4.4)::
 
@@ -10,7 +10,7 @@ Simplified discrete model (thesis eqs. 4.11-4.14, Euler discretisation of eqs. 4
 plus w ~ N(0, Q) (eq. 4.18) and observed currents y = H x + v, v ~ N(0, R) (eq. 4.19).
 State x = (i_alpha, i_beta, omega, theta); inputs u = (u_alpha, u_beta).
 
-Parameters (thesis Table 4.1, eq. 4.20-4.21 as recovered in ``seeds/README.md``):
+Parameters (thesis Table 4.1, eq. 4.20-4.21 as recovered in [Recovered]):
 a = 0.9898, b = 0.0072, c = 0.0361, d = 1, e = 0.0149, dt = 125 us,
 Q = diag(0.0013, 0.0013, 5e-6, 1e-10), R = diag(0.0006, 0.0006).
 
@@ -35,7 +35,7 @@ from numba.extending import register_jitable
 from . import register
 from .base import LOG_2PI, StateSpaceModel
 
-#: Table 4.1 / eqs. 4.20-4.21 (seeds README)
+#: Table 4.1 / eqs. 4.20-4.21 ([Recovered])
 PMSM_DEFAULTS = dict(a=0.9898, b=0.0072, c=0.0361, d=1.0, e=0.0149, dt=125e-6,
                      q=(0.0013, 0.0013, 5e-6, 1e-10), r=(0.0006, 0.0006), u_max=10.0,
                      prior_halfwidth=0.01)
@@ -85,7 +85,7 @@ def jacobian(x, mp) -> np.ndarray:
 
 @register("pmsm")
 class Pmsm(StateSpaceModel):
-    """PMSM drive in the stationary frame (seed 002 eqs. 4.11-4.21); see the module docstring.
+    """PMSM drive in the stationary frame ([Thesis] eqs. 4.11-4.21); see the module docstring.
 
     Parameters
     ----------

@@ -1,9 +1,9 @@
-"""Heating/cooling chamber models of seed 000 (§4.2-§4.4): ``thermal_inertial``, ``thermal_rate``,
+"""Heating/cooling chamber models of [Embedded] (§4.2-§4.4): ``thermal_inertial``, ``thermal_rate``,
 ``thermal_outdoor``.
 
 Units and operating point (our reading, the paper does not state it)
 --------------------------------------------------------------------
-The two-inertial model G(s) = K / ((1 + s T1)(1 + s T2)) (seed 000, eqs. 7-9) is read with
+The two-inertial model G(s) = K / ((1 + s T1)(1 + s T2)) ([Embedded], eqs. 7-9) is read with
 
 * inputs u1 (LED heater) and u2 (fan) in **percent** (0..100): the model uses ``u_scale * u``
   (default 1.0; ``u_scale=100`` feeds logs whose inputs are fractions 0..1 under the same reading,
@@ -40,14 +40,14 @@ import numpy as np
 from . import register
 from .base import LOG_2PI, StateSpaceModel
 
-#: seed 000 §4.2 heating parameters
+#: [Embedded] §4.2 heating parameters
 K_H, T_H1, T_H2 = 0.0526, 36.32, 508.48
-#: seed 000 §4.2 cooling time constants; K_c = 0.2069 - y(0)/100
+#: [Embedded] §4.2 cooling time constants; K_c = 0.2069 - y(0)/100
 K_C0, T_C1, T_C2 = 0.2069, 25.00, 148.00
 
 
 def cooling_gain(y0: float) -> float:
-    """K_c = 0.2069 - y(0)/100 (seed 000 §4.2)."""
+    """K_c = 0.2069 - y(0)/100 ([Embedded] §4.2)."""
     return K_C0 - float(y0) / 100.0
 
 
@@ -163,7 +163,7 @@ class _TwoInertial(StateSpaceModel):
 
 @register("thermal_inertial")
 class ThermalInertial(_TwoInertial):
-    """Two-inertial jump model, seed 000 eqs. 7-10 (see the module docstring for units).
+    """Two-inertial jump model, [Embedded] eqs. 7-10 (see the module docstring for units).
 
     Parameters (variances, not standard deviations): ``var_v1``, ``var_v2`` (default = var_v1),
     ``var_n``; ``y0`` first measurement (PF initial mean, K_c and default operating point);
@@ -202,7 +202,7 @@ class ThermalOutdoor(_TwoInertial):
 
 @register("thermal_rate")
 class ThermalRate(StateSpaceModel):
-    """Model-free double integrator, seed 000 eqs. 11-12::
+    """Model-free double integrator, [Embedded] eqs. 11-12::
 
         x1(k+1) = 2 x1(k) - x2(k) + v1,   x2(k+1) = x1(k) + v2,   y(k) = x1(k) + n(k)
 

@@ -1,4 +1,4 @@
-"""The illustrative example of seed 002 (thesis) §2.7.1, used by Figs. 2.2-2.4.
+"""The illustrative example of [Thesis] §2.7.1, used by Figs. 2.2-2.4.
 
     x_t = 1.2 x_{t-1} + w_{t-1},   w ~ N(0, sigma_w^2),   x_0 ~ N(0, sigma_0^2)
     y_t = x_t + v_t,               v ~ N(0, sigma_v^2)
@@ -22,7 +22,7 @@ from .base import LOG_2PI, StateSpaceModel
 
 @register("thesis_example")
 class ThesisExample(StateSpaceModel):
-    """Seed 002 eq. 2.25. Parameters: growth (1.2), sigma_w, sigma_v, sigma_0, outlier_step
+    """[Thesis] eq. 2.25. Parameters: growth (1.2), sigma_w, sigma_v, sigma_0, outlier_step
     (-1 = none), outlier_value."""
 
     n_x, n_y, n_u, n_noise = 1, 1, 0, 1

@@ -2,7 +2,7 @@
 
 A sweep runs every configuration (method, N_p, N_f) on ``runs`` independently simulated
 trajectories of one model and records the aRMSE of each (configuration, run) task
-(seed 001 eqs. 11-13).
+([MultiPDF] eqs. 11-13).
 
 Seeds (numpy ``SeedSequence`` with spawn keys, derived from one root ``seed``):
 

@@ -1,4 +1,4 @@
-"""Per-configuration summaries of a sweep and the aRMSE-vs-N_p plot (seed 001 Figs. 3-11)."""
+"""Per-configuration summaries of a sweep and the aRMSE-vs-N_p plot ([MultiPDF] Figs. 3-11)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +9,7 @@ from ..metrics import mean_interval
 
 def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFrame:
     """Per (method, N_p, N_f): runs, aRMSE mean and the paper's 95 % interval
-    mean +- 2 sigma / sqrt(m) (seed 001 §5), and filter runs per second per core."""
+    mean +- 2 sigma / sqrt(m) ([MultiPDF] §5), and filter runs per second per core."""
     rows = []
     if frame.empty:
         return pd.DataFrame(columns=["method", "n_particles", "n_filters", "runs", "armse_mean",

@@ -1,10 +1,10 @@
-"""Seed 000 §5.2, §5.3, §6 and Appendix A: PF estimation in the heating/cooling chamber.
+"""[Embedded] §5.2, §5.3, §6 and Appendix A: PF estimation in the heating/cooling chamber.
 
 Without ``--data`` every experiment runs on the simulated chamber (:mod:`pfbench.chamber`, a plant
 that is *not* the filter's model); with ``--data log.csv`` the same estimators run on the given log
 (every experiment of the recipe uses that one log; no truth, so only eq. 13 errors).
 
-Estimators (bootstrap PF, systematic resampling, seed 000 Alg. 1):
+Estimators (bootstrap PF, systematic resampling, [Embedded] Alg. 1):
   y_hat_m1: ``thermal_inertial`` (eq. 10, jump system, mode from the log), var_v / var_n per test
             (figs 6-10: sigma_v^2 = 0.010, sigma_n^2 = 0.005 -- the Table A2 setting of B-1/B2-1/B3-1);
   y_hat_m2: ``thermal_rate`` (eq. 12), sigma_v1^2 = 1e-6, sigma_v2^2 = 0, sigma_n^2 = 0.0225.

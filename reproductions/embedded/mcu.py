@@ -1,6 +1,6 @@
-"""Seed 000 Table 2 from the executed instruction stream (issue 8).
+"""[Embedded] Table 2 from the executed instruction stream.
 
-The bootstrap filter on Ob1 (seed 000 Alg. 1, eq. 6, systematic resampling, object simulated
+The bootstrap filter on Ob1 ([Embedded] Alg. 1, eq. 6, systematic resampling, object simulated
 inside) is cross-compiled as D(S) (double, soft-float, -O0) and D(O) (float, FPv4-SP, -Ofast),
 run in the unicorn Cortex-M4 emulator on small (M, N), converted to cycles with the Cortex-M4
 timing table and extrapolated to Table 2's configurations; beside it the analytic cost model

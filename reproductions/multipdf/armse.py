@@ -1,4 +1,4 @@
-"""multipdf Figs. 3-11: aRMSE vs N_p for several N_f (seed 001 §5, eqs. 11-13)."""
+"""multipdf Figs. 3-11: aRMSE vs N_p for several N_f ([MultiPDF] §5, eqs. 11-13)."""
 from __future__ import annotations
 
 from pfbench.recipes import recipe
@@ -73,5 +73,5 @@ FULL = {"fig3": "~1 min", "fig4": "~0.2 min", "fig5": "~1.5 min", "fig6": "~2 mi
 
 for _row in FIGS:
     _n = _row[0]
-    recipe(f"multipdf:{_n}", title=f"aRMSE vs N_p for {_row[8]} (seed 001 Fig. {_n[3:]})",
+    recipe(f"multipdf:{_n}", title=f"aRMSE vs N_p for {_row[8]} ([MultiPDF] Fig. {_n[3:]})",
            quick_cost=QUICK[_n], full_cost=FULL[_n])(_make(*_row))

@@ -1,4 +1,4 @@
-"""multipdf Table 4: marginalized PF aRMSE for Ob2 and Ob3 v1-v5 (seed 001 §5, §7)."""
+"""multipdf Table 4: marginalized PF aRMSE for Ob2 and Ob3 v1-v5 ([MultiPDF] §5, §7)."""
 from __future__ import annotations
 
 import pandas as pd

@@ -1,4 +1,4 @@
-"""multipdf Figs. 12-13: computation time vs threads, PF vs MultiPDF on Ob1 (seed 001 §6)."""
+"""multipdf Figs. 12-13: computation time vs threads, PF vs MultiPDF on Ob1 ([MultiPDF] §6)."""
 from __future__ import annotations
 
 import os

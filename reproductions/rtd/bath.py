@@ -1,5 +1,5 @@
 """rtd:fig6 / rtd:fig7 -- thermal-bath step up / step down with the KF and two first-order Kalman
-predictors (seed 004, §6.1, §7 Fig. 6, §8 Fig. 7). Simulated by default; ``--data log.csv`` runs on a
+predictors ([RTD], §6.1, §7 Fig. 6, §8 Fig. 7). Simulated by default; ``--data log.csv`` runs on a
 real log (columns t, y and optionally u)."""
 from __future__ import annotations
 

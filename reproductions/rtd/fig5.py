@@ -1,4 +1,4 @@
-"""rtd:fig5 -- time-varying Kalman filter on the simulated second-order RTD (seed 004, §4.2.1, §5, Fig. 5)."""
+"""rtd:fig5 -- time-varying Kalman filter on the simulated second-order RTD ([RTD], §4.2.1, §5, Fig. 5)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""rtd:poles -- poles, RC constant, DARE solution and steady-state gain (seed 004, §2.6, §4, §6)."""
+"""rtd:poles -- poles, RC constant, DARE solution and steady-state gain ([RTD], §2.6, §4, §6)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Thesis (seed 002) chapter 2 figures: SIS degeneracy (Fig. 2.2), SIR (Fig. 2.3), ASIR vs
+"""Thesis ([Thesis]) chapter 2 figures: SIS degeneracy (Fig. 2.2), SIR (Fig. 2.3), ASIR vs
 bootstrap with an outlier (Fig. 2.4 + MSE table), on the example of §2.7.1
 (:mod:`pfbench.models.thesis_example`; the observation equation was lost in the extraction,
 we use y_t = x_t + v_t).

@@ -1,4 +1,4 @@
-"""Thesis (seed 002) §4.4.4-4.4.5: tracking-loss histograms of the sensorless PMSM start-up.
+"""Thesis ([Thesis]) §4.4.4-4.4.5: tracking-loss histograms of the sensorless PMSM start-up.
 
 Fig. 4.7: PI on the *maximum* of the SMC posterior for two particle counts (threshold N/3).
 The thesis does not say which N; Fig. 4.9's last column is N = 60, and the text says fewer
@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from pfbench.control.closed_loop import LoopConfig, Scenario, run_batch, run_once
-from pfbench.filters.optimal_proposal import step_time_us
+from pfbench.filters.optimal_proposal import Q_THETA_FILTER, step_time_us
 from pfbench.recipes import recipe
 
 
@@ -58,7 +58,8 @@ def fig4_7(ctx):
     ns = [int(v) for v in str(ctx.options.get("particles", "30,15")).split(",")]
     results = []
     for n in ns:
-        cfg = LoopConfig(n_particles=n, ess_threshold=n / 3.0, point="max", backend=ctx.backend)
+        cfg = LoopConfig(n_particles=n, ess_threshold=n / 3.0, point="max", backend=ctx.backend,
+                         q_theta_filter=ctx.option("q_theta", Q_THETA_FILTER, float))
         _warm(cfg)
         results.append(run_batch(cfg, n_runs, seed=ctx.seed, progress=ctx.progress))
     labels = [f"N = {n}" for n in ns]
@@ -93,7 +94,8 @@ def fig4_9(ctx):
     results = []
     for pt in modes:
         cfg = LoopConfig(n_particles=n, ess_threshold=12.0, point=pt, backend=ctx.backend,
-                         scenario=Scenario(hold_s=hold))
+                         scenario=Scenario(hold_s=hold),
+                         q_theta_filter=ctx.option("q_theta", Q_THETA_FILTER, float))
         _warm(cfg)
         results.append(run_batch(cfg, n_runs, seed=ctx.seed, progress=ctx.progress))
     labels = ["mean value", "random sample", "maximum"]

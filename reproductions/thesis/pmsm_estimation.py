@@ -1,4 +1,4 @@
-"""Thesis (seed 002) §4.4.2: EKF vs SMC on one start-up realisation (Figs. 4.1-4.4) and the
+"""Thesis ([Thesis]) §4.4.2: EKF vs SMC on one start-up realisation (Figs. 4.1-4.4) and the
 estimation quality vs the prior's theta offset (Fig. 4.6).
 
 Scenario (§4.4.1): omega_ref ramps 0 -> 10 rad/s in 0.1 s and holds 0.1 s (1600 steps of
@@ -135,7 +135,7 @@ def fig4_3(ctx):
     M = smc["x"].shape[0]
     t_end = min(M, int(round(ctx.option("t_end", 0.1, float) / DT)))
     t = np.arange(t_end) * DT
-    ob = np.linspace(-15, 15, 121)
+    ob = np.linspace(-20, 20, 161)
     tb = np.linspace(-math.pi, math.pi, 121)
     Hw = np.empty((t_end, ob.size - 1))
     Ht = np.empty((t_end, tb.size - 1))
@@ -180,7 +180,7 @@ def fig4_4(ctx):
         a.scatter(om, th, s=300 * w + 2, c=w, cmap="Greys", vmin=0, vmax=max(w.max(), 1e-12),
                   edgecolors="k", linewidths=0.2)
         a.plot(smc["x"][k, 2], smc["x"][k, 3], "b+", ms=12, mew=2)
-        a.set(title=f"t={ts:.3f}s", xlim=(-15, 15), ylim=(-math.pi, math.pi))
+        a.set(title=f"t={ts:.3f}s", xlim=(-20, 20), ylim=(-math.pi, math.pi))
         # modes: cluster the weighted theta particles into "near truth" / "pi away"
         near = np.abs(_wrap(th - smc["x"][k, 3])) <= math.pi / 2
         rows.append({"t": ts, "mass_near_truth": float(w[near].sum()),

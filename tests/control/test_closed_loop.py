@@ -1,4 +1,4 @@
-"""Closed-loop PMSM runs (seed 002 §4.4): backends agree, streams are common, EKF runs."""
+"""Closed-loop PMSM runs ([Thesis] §4.4): backends agree, streams are common, EKF runs."""
 import numpy as np
 
 from pfbench.control.closed_loop import LoopConfig, Scenario, run_batch, run_once

@@ -1,4 +1,4 @@
-"""PI / CC / CEC control laws (seed 002 §4.3), loss (eq. 4.16) and the failure definition."""
+"""PI / CC / CEC control laws ([Thesis] §4.3), loss (eq. 4.16) and the failure definition."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""SMC with the optimal proposal for the PMSM (seed 002 eqs. 4.22-4.25)."""
+"""SMC with the optimal proposal for the PMSM ([Thesis] eqs. 4.22-4.25)."""
 import math
 
 import numpy as np

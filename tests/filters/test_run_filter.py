@@ -62,7 +62,7 @@ def test_multipdf_estimate_is_mean_of_sub_filters_and_particle_split():
     r = pfbench.run_filter(model, traj.y, traj.u, method="multipdf", n_particles=100, n_filters=3,
                            backend="numpy", seed=1)
     assert r.sub_estimates.shape == (3, 30, 2)
-    assert r.info["n_per_filter"] == 33  # round(100 / 3), seed 001 Alg. 2 step 1
+    assert r.info["n_per_filter"] == 33  # round(100 / 3), [MultiPDF] Alg. 2 step 1
     assert np.allclose(r.estimates, r.sub_estimates.mean(axis=0))
 
 

@@ -1,4 +1,4 @@
-"""Emulated Cortex-M4 instruction counts of the C bootstrap filter (issue 8).
+"""Emulated Cortex-M4 instruction counts of the C bootstrap filter.
 
 Tests that need the cross toolchain skip with the reason when it is missing (`make mcu-tools`).
 """

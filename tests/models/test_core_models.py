@@ -1,4 +1,4 @@
-"""Registry and the seed 001 objects Ob1-Ob4 + the linear-Gaussian reference."""
+"""Registry and the [MultiPDF] objects Ob1-Ob4 + the linear-Gaussian reference."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""PMSM model (seed 002 eqs. 4.11-4.21, Jacobian eq. 4.26)."""
+"""PMSM model ([Thesis] eqs. 4.11-4.21, Jacobian eq. 4.26)."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""thermal_inertial / thermal_rate / thermal_outdoor (seed 000 eqs. 7-12)."""
+"""thermal_inertial / thermal_rate / thermal_outdoor ([Embedded] eqs. 7-12)."""
 import numpy as np
 import pytest
 

@@ -1,6 +1,6 @@
 """Recipes embedded:fig6-fig10, tableA1/A2, figA1 on the simulated chamber (fixed seeds) and on a log.
 
-Each qualitative claim of seed 000 is checked as the property *we measure*, with the paper's
+Each qualitative claim of [Embedded] is checked as the property *we measure*, with the paper's
 expectation written beside it; where our simulation disagrees the test pins the disagreement
 (so a change in behaviour is noticed) and the recipe says so in its ledger.
 """

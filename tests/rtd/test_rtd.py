@@ -1,4 +1,4 @@
-"""Tests of pfbench.rtd (seed 004): models, RC fit, boundary layer, data logs and the rtd recipes."""
+"""Tests of pfbench.rtd ([RTD]): models, RC fit, boundary layer, data logs and the rtd recipes."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,8 +1,8 @@
 /*
- * Bootstrap particle filter on Ob1 for a bare-metal Cortex-M4(F) -- pfbench issue 8.
+ * Bootstrap particle filter on Ob1 for a bare-metal Cortex-M4(F) ([Embedded] §5.1).
  *
- * Seed 000, Algorithm 1 (bootstrap PF) with systematic resampling, run on the
- * simulation object of seed 000 eq. 6 (= seed 001 Ob1), simulated inside the loop
+ * [Embedded], Algorithm 1 (bootstrap PF) with systematic resampling, run on the
+ * simulation object of [Embedded] eq. 6 (= [MultiPDF] Ob1), simulated inside the loop
  * exactly as the paper's platform benchmark did (§5.1):
  *
  *     x(k+1) = 0.5 x(k) + 25 x(k) / (1 + x(k)^2) + 8 cos(1.2 k) + v(k),   v ~ N(0, 10)
@@ -78,7 +78,7 @@ NOINLINE real randn(void)
     return SQRT(L(-2.0) * LOG(u1)) * COS(TWO_PI * u2);
 }
 
-/* Ob1 state transition without noise, seed 000 eq. 6. */
+/* Ob1 state transition without noise, [Embedded] eq. 6. */
 static real transition(real x, int k)
 {
     return L(0.5) * x + L(25.0) * x / (L(1.0) + x * x) + L(8.0) * COS(L(1.2) * (real)k);
