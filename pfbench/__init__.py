@@ -12,7 +12,7 @@ Stable API::
 from importlib import metadata as _metadata
 
 from . import models
-from .errors import NumericalError, PfbenchError
+from .errors import DataError, InputError, NumericalError, PfbenchError, UnsupportedError
 
 try:
     __version__ = _metadata.version("pfbench")
@@ -22,15 +22,17 @@ except _metadata.PackageNotFoundError:  # running from a source tree without ins
 
 def __getattr__(name):
     # Lazy imports keep `import pfbench` (and the CLI's --help) fast.
-    if name in ("run_filter", "FilterResult"):
-        from .filters import api
+    if name in ("run_filter", "FilterResult", "Method"):
+        from . import filters
 
-        return getattr(api, name)
-    if name in ("resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends"):
+        return getattr(filters, name)
+    if name in ("resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends", "sweep",
+                "plants"):
         import importlib
 
         return importlib.import_module(f".{name}", __name__)
     raise AttributeError(name)
 
 
-__all__ = ["models", "run_filter", "FilterResult", "PfbenchError", "NumericalError", "__version__"]
+__all__ = ["models", "run_filter", "FilterResult", "Method", "kalman", "sweep", "PfbenchError",
+           "InputError", "DataError", "UnsupportedError", "NumericalError", "__version__"]

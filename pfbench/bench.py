@@ -32,9 +32,9 @@ CONFIGS = ((1000, 1000), (500, 1000), (500, 500), (100, 100_000))
 
 
 def _floor_kernel():
-    from numba import njit
+    from .backends.cache import njit
 
-    @njit(cache=True, nogil=True)
+    @njit(nogil=True)
     def floor_numba(rng, n, m):
         acc = 0.0
         for _ in range(m):
@@ -70,7 +70,7 @@ def floor_ns(n: int, m: int, repeats: int, backend: str) -> float:
 
 def filter_ns(model, traj, n: int, backend: str, dtype: str, repeats: int, method="bootstrap",
               n_filters=1, n_threads=None) -> float:
-    from .filters.api import run_filter
+    from .filters import run_filter
 
     kw = dict(method=method, n_particles=n, n_filters=n_filters, backend=backend, dtype=dtype,
               n_threads=n_threads)

@@ -119,7 +119,7 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
     import numpy as np
 
     from . import metrics, models
-    from .filters.api import run_filter
+    from .filters import run_filter
 
     kw = _model_params(params)
     if model_version is not None:
@@ -129,7 +129,7 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
                                  param_hint="'--filters'")
     if data:
-        from .datalog import load_log
+        from .plants.datalog import load_log
 
         traj = load_log(data, model)
     else:

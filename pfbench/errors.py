@@ -1,12 +1,37 @@
-"""Error types that the CLI turns into one-line messages (exit code 2)."""
+"""The error hierarchy. Every failure that the *user* caused (a bad value, name, shape, option or
+file) or that the *model or data* caused (a method the model does not support, numerical trouble)
+is a :class:`PfbenchError`; the CLI prints such an error as one line ``error: ...`` and exits
+with code 2. Any other exception is a bug in pfbench: the CLI shows its traceback and exits 1.
+
+::
+
+    PfbenchError
+    ├── InputError (also a ValueError)   a bad argument, option, name or shape
+    │   └── DataError                    an unusable data file, log or store
+    ├── UnsupportedError                 the model lacks what the method needs
+    └── NumericalError                   numerical trouble that cannot be recovered from
+"""
 
 
 class PfbenchError(Exception):
-    """A user-facing error: bad input, bad configuration, unusable data.
+    """A user-facing error: the CLI prints ``error: <message>`` on one line and exits with code 2."""
 
-    The CLI prints ``error: <message>`` on one line and exits with code 2.
-    """
+
+class InputError(PfbenchError, ValueError):
+    """A bad argument, option value, name or array shape given by the user."""
+
+
+class DataError(InputError):
+    """A data file, log, journal or cache entry that cannot be used as it is."""
+
+
+class UnsupportedError(PfbenchError):
+    """The model does not declare what the method needs (e.g. no linear-Gaussian substructure)."""
 
 
 class NumericalError(PfbenchError):
-    """Numerical trouble that cannot be recovered from (e.g. a diverging model)."""
+    """Numerical trouble that cannot be recovered from (e.g. a diverging model, a DARE without a
+    stabilising solution)."""
+
+
+__all__ = ["PfbenchError", "InputError", "DataError", "UnsupportedError", "NumericalError"]

@@ -22,20 +22,48 @@ floating-point operations.
 """
 from __future__ import annotations
 
+import enum
 import math
 
 import numpy as np
 
-SCHEMES = ("systematic", "stratified", "multinomial", "residual", "residual_deterministic")
+from .errors import InputError
+
+
+class Scheme(enum.IntEnum):
+    """The one table of resampling schemes; the value is the code the compiled kernels branch on."""
+
+    SYSTEMATIC = 0
+    STRATIFIED = 1
+    MULTINOMIAL = 2
+    RESIDUAL = 3
+    RESIDUAL_DETERMINISTIC = 4
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+    @classmethod
+    def parse(cls, name) -> "Scheme":
+        """The scheme called ``name``, or an InputError listing the choices."""
+        if isinstance(name, Scheme):
+            return name
+        try:
+            return cls[str(name).strip().upper()]
+        except KeyError:
+            raise InputError(f"unknown resampling scheme {name!r}; choose one of {', '.join(SCHEMES)}") from None
+
+
+SCHEMES = tuple(s.label for s in Scheme)
 
 
 def _cdf(weights: np.ndarray) -> np.ndarray:
     w = np.asarray(weights, dtype=np.float64)
     if w.ndim != 1 or w.size == 0:
-        raise ValueError("weights must be a non-empty 1-D array")
+        raise InputError("weights must be a non-empty 1-D array")
     cdf = np.cumsum(w)
     if not (np.isfinite(cdf[-1]) and cdf[-1] > 0.0) or np.any(w < 0):
-        raise ValueError("weights must be finite, non-negative and not all zero")
+        raise InputError("weights must be finite, non-negative and not all zero")
     return cdf
 
 
@@ -74,7 +102,7 @@ def residual_counts(weights) -> tuple[np.ndarray, np.ndarray]:
     cdf = _cdf(weights)
     n = cdf.size
     w = np.asarray(weights, dtype=np.float64)
-    nw = w * (n / cdf[-1])
+    nw = (w / cdf[-1]) * n  # normalise first: n / total overflows when total is subnormal
     counts = np.floor(nw).astype(np.int64)
     return counts, nw - counts
 
@@ -106,16 +134,13 @@ def residual_deterministic(weights, rng: np.random.Generator | None = None) -> n
     return np.repeat(np.arange(n, dtype=np.int64), counts)
 
 
-_FUNCS = {"systematic": systematic, "stratified": stratified, "multinomial": multinomial,
-          "residual": residual, "residual_deterministic": residual_deterministic}
+_FUNCS = {Scheme.SYSTEMATIC: systematic, Scheme.STRATIFIED: stratified, Scheme.MULTINOMIAL: multinomial,
+          Scheme.RESIDUAL: residual, Scheme.RESIDUAL_DETERMINISTIC: residual_deterministic}
 
 
-def get(name: str):
-    """The scheme function by name."""
-    try:
-        return _FUNCS[name]
-    except KeyError:
-        raise ValueError(f"unknown resampling scheme {name!r}; choose one of {', '.join(SCHEMES)}") from None
+def get(name):
+    """The scheme function by name or :class:`Scheme`."""
+    return _FUNCS[Scheme.parse(name)]
 
 
 def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Execution backends: ``numpy`` (reference) and ``numba`` (fast path).
 
 Both expose ``run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess,
-inc, resampled, degen)``; :func:`pfbench.filters.api.run_filter` is the public entry point.
+inc, resampled, degen)``; :func:`pfbench.run_filter` is the public entry point.
 """
 from __future__ import annotations
 

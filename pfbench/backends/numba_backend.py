@@ -1,16 +1,18 @@
-"""The numba backend: the model's own functions compiled into a fused, cached filter kernel.
+"""The numba backend: a model's own functions compiled into cached filter kernels.
 
-numba's on-disk cache (``cache=True``) keys a function by its source file and name, and it
-cannot cache a kernel that receives the model functions as arguments or closure variables.
-So for each model class we write a tiny module into the pfbench cache directory::
+numba's on-disk cache cannot hold a kernel that receives the model functions as arguments or
+closure variables. So each filter family has its kernel written as a real module of this package
+(``numba_particle.py``, ``numba_mpf.py``, ``numba_guided.py``) that calls the model through module
+globals, and for each (family, model class) we write a copy of that module into the cache
+directory, with the model's njit-compiled functions bound to those globals at its end::
 
-    <header: bind the model's njit-compiled initial/transition/log_likelihood>
-    <the engine template numba_kernel.tmpl>
+    <the family's kernel module source>
+    <footer: bind the model's compiled functions to the kernel's globals>
 
-and import it. Its kernels are ordinary module-level ``@njit(cache=True)`` functions, so the
-second process start loads machine code from disk instead of recompiling. The file name
-carries a hash of the template, the model's module source and the numba version, so editing a
-model or the engine gives a new module (and a fresh compile), never a stale kernel.
+and import it. Its kernels are ordinary module-level cached functions, so a second process loads
+machine code from disk instead of recompiling. The file name carries a hash of the whole pfbench
+package, the model's module source and the numba/NumPy versions, so editing anything gives a
+new module and a fresh compile, never a stale kernel (see :mod:`pfbench.backends.cache`).
 
 Cache location: ``$PFBENCH_CACHE_DIR`` (default ``~/.cache/pfbench``) ``/kernels``.
 """
@@ -25,35 +27,53 @@ import sys
 import threading
 from pathlib import Path
 
-import numba
 import numpy as np
 
 from ..io import write_text
+from . import cache
 
-_TEMPLATE = Path(__file__).with_name("numba_kernel.tmpl")
-_LOCK = threading.Lock()
-_MODULES: dict[type, object] = {}
-_FUNCS: dict[type, tuple] = {}
+_HERE = Path(__file__).resolve().parent
+#: family -> (kernel module file, the model functions it calls as ``_<name>``)
+FAMILIES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "particle": ("numba_particle.py", ("initial", "transition", "log_likelihood")),
+}
+_LOCK = threading.RLock()
+_MODULES: dict[tuple[str, type], object] = {}
+_FUNCS: dict[tuple[type, str], object] = {}
 _CLASSES: dict[tuple[str, str], type] = {}
 
 
+def register_family(family: str, filename: str, functions: tuple[str, ...]) -> None:
+    """Declare a kernel family: its module file in this folder and the model functions it binds."""
+    FAMILIES[family] = (filename, tuple(functions))
+
+
 def cache_dir() -> Path:
-    root = os.environ.get("PFBENCH_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "pfbench")
-    return Path(root) / "kernels"
+    return cache.cache_root() / "kernels"
 
 
-def model_functions(module: str, qualname: str):
-    """njit-compiled (initial, transition, log_likelihood) of a model class (cached)."""
+def _model_class(module: str, qualname: str) -> type:
     obj = _CLASSES.get((module, qualname))
     if obj is None:  # a process that imports the kernel module directly
         obj = importlib.import_module(module)
         for part in qualname.split("."):
             obj = getattr(obj, part)
-    if obj not in _FUNCS:
-        jit = numba.njit(cache=disk_cacheable(obj), nogil=True)
-        _FUNCS[obj] = tuple(jit(inspect.getattr_static(obj, name).__func__)
-                            for name in ("initial", "transition", "log_likelihood"))
-    return _FUNCS[obj]
+    return obj
+
+
+def model_function(module: str, qualname: str, name: str):
+    """The njit-compiled staticmethod ``name`` of a model class (compiled once per process)."""
+    cls = _model_class(module, qualname)
+    key = (cls, name)
+    with _LOCK:
+        if key not in _FUNCS:
+            can_cache = disk_cacheable(cls)
+            func = inspect.getattr_static(cls, name)
+            func = getattr(func, "__func__", func)
+            if can_cache:
+                cache.track_file(inspect.getsourcefile(func))
+            _FUNCS[key] = cache.njit(cache=can_cache, nogil=True)(func)
+        return _FUNCS[key]
 
 
 def disk_cacheable(cls: type) -> bool:
@@ -76,48 +96,50 @@ def disk_cacheable(cls: type) -> bool:
         return False
 
 
-def _source_fingerprint(cls: type) -> bytes:
-    parts = [_TEMPLATE.read_bytes(), numba.__version__.encode(), np.__version__.encode(),
-             str(disk_cacheable(cls)).encode()]
-    for mod_name in sorted({cls.__module__, "pfbench.models.base"}):
-        mod = sys.modules.get(mod_name)
-        try:
-            parts.append(inspect.getsource(mod).encode())
-        except (OSError, TypeError):
-            for name in ("initial", "transition", "log_likelihood"):
-                code = inspect.getattr_static(cls, name).__func__.__code__
+def _source_fingerprint(cls: type, family: str) -> bytes:
+    parts = [cache.package_fingerprint().encode(), family.encode(), str(disk_cacheable(cls)).encode()]
+    mod = sys.modules.get(cls.__module__)
+    try:
+        parts.append(inspect.getsource(mod).encode())
+    except (OSError, TypeError):
+        for name in FAMILIES[family][1]:
+            code = getattr(inspect.getattr_static(cls, name), "__func__", None)
+            if code is not None:
+                code = code.__code__
                 parts.append(code.co_code + repr(code.co_consts).encode())
     return hashlib.sha256(b"\0".join(parts)).digest()
 
 
-def kernel_module(model_or_cls):
-    """The generated kernel module of a model (class or instance)."""
+def kernel_module(model_or_cls, family: str = "particle"):
+    """The generated kernel module of a model (class or instance) for a filter family."""
     cls = model_or_cls if isinstance(model_or_cls, type) else type(model_or_cls)
+    filename, functions = FAMILIES[family]
     with _LOCK:
-        if cls in _MODULES:
-            return _MODULES[cls]
+        if (family, cls) in _MODULES:
+            return _MODULES[(family, cls)]
         # models defined in scripts or notebooks are not importable by name: register the class
         _CLASSES[(cls.__module__, cls.__qualname__)] = cls
-        digest = _source_fingerprint(cls).hex()[:16]
+        digest = _source_fingerprint(cls, family).hex()[:16]
         safe = "".join(c if c.isalnum() else "_" for c in f"{cls.__module__}_{cls.__qualname__}")
-        name = f"k_{safe}_{digest}"
+        name = f"k_{family}_{safe}_{digest}"
         path = cache_dir() / f"{name}.py"
-        if not path.exists():
-            header = (f"# generated by pfbench for {cls.__module__}.{cls.__qualname__}; do not edit\n"
-                      "from pfbench.backends.numba_backend import model_functions as _mf\n"
-                      f"_initial, _transition, _log_likelihood = _mf({cls.__module__!r}, "
-                      f"{cls.__qualname__!r})\n")
-            body = _TEMPLATE.read_text()
-            if not disk_cacheable(cls):
-                body = body.replace("cache=True", "cache=False")
-            write_text(path, header + body)
+        body = (_HERE / filename).read_text()
+        footer = (f"\n\n# ---- generated by pfbench for {cls.__module__}.{cls.__qualname__}: bind the model\n"
+                  "from pfbench.backends.numba_backend import model_function as _model_function\n")
+        for fn in functions:
+            footer += (f"_{fn} = _model_function({cls.__module__!r}, {cls.__qualname__!r}, {fn!r})\n")
+        text = body + footer
+        if not disk_cacheable(cls):
+            text = text.replace("@_njit(nogil=True)", "@_njit(nogil=True, cache=False)")
+        if not path.exists() or path.read_text() != text:
+            write_text(path, text)
         modname = f"pfbench_kernel_{name}"
         spec = importlib.util.spec_from_file_location(modname, path)
         mod = importlib.util.module_from_spec(spec)
         # numba's cache rebuilds a kernel's environment by importing its module by name
         sys.modules[modname] = mod
         spec.loader.exec_module(mod)
-        _MODULES[cls] = mod
+        _MODULES[(family, cls)] = mod
         return mod
 
 
@@ -125,7 +147,7 @@ _WARM: set = set()
 
 
 def warm_up(model, p, y, u, dtype) -> None:
-    """Compile (or load) the kernel for these argument types outside any timed region.
+    """Compile (or load) the particle kernel for these argument types outside any timed region.
 
     numba compiles on the first call, so one call on a single step and particle with a
     throwaway generator; the caller's random streams are not touched.

@@ -7,13 +7,17 @@ The engine calls the ``*_into`` kernels with the running sum of the unnormalised
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from .cache import njit
 
-SCHEME_CODES = {"systematic": 0, "stratified": 1, "multinomial": 2, "residual": 3,
-                "residual_deterministic": 4}
+from ..resampling import Scheme
+
+_STRATIFIED = int(Scheme.STRATIFIED)
+_MULTINOMIAL = int(Scheme.MULTINOMIAL)
+_SYSTEMATIC = int(Scheme.SYSTEMATIC)
+_RESIDUAL_DETERMINISTIC = int(Scheme.RESIDUAL_DETERMINISTIC)
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def cumsum_into(w, cdf):
     acc = 0.0
     for i in range(w.shape[0]):
@@ -22,7 +26,7 @@ def cumsum_into(w, cdf):
     return acc
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _merge(cdf, n, start_u, stride_u, idx):
     """idx[i] = smallest j with cdf[j] > (u_i + i) / n * total, positions increasing."""
     total = cdf[n - 1]
@@ -36,27 +40,27 @@ def _merge(cdf, n, start_u, stride_u, idx):
         idx[i] = j
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def systematic_into(cdf, rng, idx):
     u = np.empty(1)
     u[0] = rng.random()
     _merge(cdf, cdf.shape[0], u, 0, idx)
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def stratified_into(cdf, rng, idx):
     n = cdf.shape[0]
     u = rng.random(n)
     _merge(cdf, n, u, 1, idx)
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _search_right(cdf, n, value):
     j = np.searchsorted(cdf, value, side="right")
     return j if j < n else n - 1
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def multinomial_into(cdf, rng, idx):
     n = cdf.shape[0]
     total = cdf[n - 1]
@@ -66,13 +70,12 @@ def multinomial_into(cdf, rng, idx):
     idx.sort()
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _residual_counts(w, total, counts, res):
     n = w.shape[0]
-    scale = n / total
     s = 0
     for i in range(n):
-        nw = w[i] * scale
+        nw = (w[i] / total) * n  # normalise first: n / total overflows when total is subnormal
         c = np.floor(nw)
         counts[i] = np.int64(c)
         res[i] = nw - c
@@ -80,7 +83,7 @@ def _residual_counts(w, total, counts, res):
     return n - s
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _expand(counts, idx):
     k = 0
     for i in range(counts.shape[0]):
@@ -89,7 +92,7 @@ def _expand(counts, idx):
             k += 1
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def residual_into(w, total, rng, idx, deterministic):
     n = w.shape[0]
     counts = np.empty(n, np.int64)
@@ -109,34 +112,34 @@ def residual_into(w, total, rng, idx, deterministic):
     _expand(counts, idx)
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def resample_into(code, w, cdf, rng, idx):
-    """Dispatch on the scheme code; ``cdf`` is the running sum of ``w``."""
-    if code == 0:
+    """Dispatch on the :class:`~pfbench.resampling.Scheme` code; ``cdf`` is the running sum of ``w``."""
+    if code == _SYSTEMATIC:
         systematic_into(cdf, rng, idx)
-    elif code == 1:
+    elif code == _STRATIFIED:
         stratified_into(cdf, rng, idx)
-    elif code == 2:
+    elif code == _MULTINOMIAL:
         multinomial_into(cdf, rng, idx)
     else:
-        residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == 4)
+        residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == _RESIDUAL_DETERMINISTIC)
 
 
 def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:
     """Public wrapper with the signature of :func:`pfbench.resampling.resample`."""
     from .. import resampling as ref
 
-    ref.get(name)  # validates the name
+    code = int(Scheme.parse(name))
     w = np.ascontiguousarray(weights, dtype=np.float64)
     ref._cdf(w)  # validates the weights
     cdf = np.empty_like(w)
     cumsum_into(w, cdf)
     idx = np.empty(w.shape[0], np.int64)
-    resample_into(SCHEME_CODES[name], w, cdf, rng, idx)
+    resample_into(code, w, cdf, rng, idx)
     return idx
 
 
-@njit(cache=True)
+@njit
 def _regularized_jitter(x, idx, d, h, rng):
     n, n_x = x.shape
     z = rng.standard_normal((n, n_x))

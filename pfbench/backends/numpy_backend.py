@@ -9,24 +9,24 @@ all steps, drawing every random number from one ``numpy.random.Generator`` in th
    b. transition noise, ``rng.standard_normal((n, n_noise))``;
    c. the resampling draws, if the filter resamples at this step.
 
-The numba backend (``numba_kernel.tmpl``) follows the same order with the same operations,
-which is what makes the two backends agree under common random numbers.
+The numba backend (:mod:`pfbench.backends.numba_particle`) follows the same order with the same
+operations, which is what makes the two backends agree under common random numbers.
 
-Methods (codes shared with the numba kernel): 0 bootstrap (resample every step, [Embedded]
-Alg. 1; [MultiPDF] Alg. 1), 1 SIR (resample when N_eff < threshold, [MultiPDF] eq. 8; [Thesis]
-Alg. 3), 2 SIS (never resample, [Thesis] Alg. 2), 3 ASIR (auxiliary SIR, [Thesis] Alg. 6:
-first-stage weights p(y_t | mu_t^i) at mu_t^i = f(x_{t-1}^i) with zero noise).
+Methods (:class:`pfbench.filters.methods.Method` codes, shared with the numba kernel): bootstrap
+(resample every step, [Embedded] Alg. 1; [MultiPDF] Alg. 1), SIR (resample when N_eff <
+threshold, [MultiPDF] eq. 8; [Thesis] Alg. 3), SIS (never resample, [Thesis] Alg. 2), ASIR
+(auxiliary SIR, [Thesis] Alg. 6: first-stage weights p(y_t | mu_t^i) at mu_t^i = f(x_{t-1}^i)
+with zero noise).
+
+:func:`weigh` is the NumPy backend's one log-sum-exp weighting; every NumPy filter driver
+(particle, marginalized, guided) calls it.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .. import resampling
-
-METHOD_CODES = {"bootstrap": 0, "sir": 1, "sis": 2, "asir": 3}
-_SCHEMES = {v: k for k, v in
-            {"systematic": 0, "stratified": 1, "multinomial": 2, "residual": 3,
-             "residual_deterministic": 4}.items()}
+from ..filters.methods import Method
 
 
 def _clean(ll) -> np.ndarray:
@@ -37,7 +37,8 @@ def _clean(ll) -> np.ndarray:
 
 
 def weigh(lw: np.ndarray, ll: np.ndarray):
-    """Combine normalised log-weights with log-likelihoods, log-sum-exp style.
+    """Combine normalised log-weights with log-likelihoods, log-sum-exp style (the NumPy twin of
+    :func:`pfbench.backends.numba_weights.weigh`).
 
     Returns (wu, cdf, m, total, degenerate): unnormalised weights exp(a - max a), their
     running sum, the max, the sum, and whether every likelihood was zero (then the previous
@@ -66,7 +67,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
     """NumPy twin of the numba ``run_group``; fills the output arrays in place."""
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
-    resample = resampling.get(_SCHEMES[scheme])
+    resample = resampling.get(resampling.Scheme(scheme))
     G, n, n_x = x.shape
     n_noise = model.n_noise
     logn = np.log(n)
@@ -78,7 +79,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
         for g in range(G):
             xg = x[g]
             first = 0.0
-            if method == 3:  # ASIR first stage
+            if method == Method.ASIR:  # first stage
                 mu = transition(xg, ut, t, np.zeros((n, n_noise)), p)
                 lam_all = _clean(log_likelihood(yt, mu, ut, t, p))
                 wu, _, m1, tot1, deg1 = weigh(lw[g], lam_all)
@@ -92,7 +93,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             noise = rng.standard_normal((n, n_noise))
             xg[:] = transition(xg, ut, t, noise, p)
             ll = _clean(log_likelihood(yt, xg, ut, t, p))
-            if method == 3:
+            if method == Method.ASIR:
                 ll = _clean(ll - lam)
             wu, _, m, total, deg = weigh(lw[g], ll)
             degen[g, t] = deg
@@ -103,7 +104,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             wn = wu / total
             e = 1.0 / np.cumsum(wn * wn)[-1]
             ess[g, t] = e
-            do = method == 0 or (method == 1 and e < ess_threshold)
+            do = method == Method.BOOTSTRAP or (method == Method.SIR and e < ess_threshold)
             if do:
                 xg[:] = xg[resample(wu, rng)]
                 lw[g] = -logn

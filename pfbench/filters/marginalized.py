@@ -45,15 +45,16 @@ import math
 import time
 
 import numpy as np
-from numba import njit
+from ..backends.cache import njit
 from numba.extending import register_jitable
 
-from ..backends.numba_resampling import SCHEME_CODES, cumsum_into, resample_into
+from ..backends.numba_resampling import cumsum_into, resample_into
+from ..resampling import Scheme
 from ..errors import PfbenchError
 from ..models.ob2 import ob2_h
 from ..models.ob3 import ob3_h
 from ..models.ob5 import ob5_coil_factor, ob5_fem, ob5_h
-from .api import FilterResult
+from .result import FilterResult
 
 KIND_OB2, KIND_OB3, KIND_LINEAR, KIND_OB5 = 0, 1, 2, 3
 _LOG2PI = math.log(2.0 * math.pi)
@@ -340,7 +341,7 @@ def _run_numpy(rng, n, kind, y, u, fpar, ipar, mat, An, Al, Qn, Ql, R, mn0, sn0,
             xn, m, P = xn[idx], m[idx], P[idx]
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)
 def _run_numba(rng, n, kind, y, u, fpar, ipar, mat, An, Al, Qn, Ql, R, mn0, sn0, m0, P0,
                idx_n, idx_l, scheme, est, var, inc):
     xn, m, P = _init(rng, n, kind, mn0, sn0, m0, P0, fpar)
@@ -424,7 +425,7 @@ def run_mpf(model, y, u=None, *, n_particles: int = 100, backend: str = "numba",
     ``n_particles`` is ignored (one Kalman/EKF copy) for models without nonlinear states.
     ``seed``: int or ``numpy.random.SeedSequence``.
     """
-    from .api import _check_inputs
+    from .inputs import check_inputs as _check_inputs
 
     if backend not in ("numpy", "numba"):
         raise PfbenchError(f"unknown backend {backend!r}; choose numpy or numba")
@@ -450,7 +451,7 @@ def run_mpf(model, y, u=None, *, n_particles: int = 100, backend: str = "numba",
             c(s["idx_n"], np.int64), c(s["idx_l"], np.int64))
     t0 = time.perf_counter()
     if backend == "numba":
-        _run_numba(*args, SCHEME_CODES[resampling], est, var, inc)
+        _run_numba(*args, int(Scheme.parse(resampling)), est, var, inc)
     else:
         _run_numpy(*args, resampling, est, var, inc)
     elapsed = time.perf_counter() - t0

@@ -51,7 +51,7 @@ import math
 import time
 
 import numpy as np
-from numba import njit
+from ..backends.cache import njit
 from numba.extending import overload, register_jitable
 
 from .. import resampling as _ref
@@ -317,7 +317,7 @@ def _offline_py(y, u, mp, fp, n, mode, rng, rng_point, est, ess, inc, res, sprea
         spread[t, 2] = pe[4]
 
 
-_offline_nb = njit(cache=True, nogil=True)(_offline_py)
+_offline_nb = njit(nogil=True)(_offline_py)
 POINT_MODES = {"mean": 0, "sample": 1, "max": 2}
 
 

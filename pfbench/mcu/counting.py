@@ -434,23 +434,27 @@ class counting:
 
 
 # ---------------------------------------------------------------------- public API
-METHODS = ("bootstrap", "sir", "sis", "multipdf", "asir")
 
 
 def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: int,
                  resampling: str, ess_threshold, seed: int) -> dict[str, int]:
     from ..backends import numpy_backend
-    from ..filters.api import _METHOD_CODES, _SCHEME_CODES
+    from ..filters.inputs import ess_count
+    from ..filters.methods import Method
+    from ..filters.particle import split_particles
+    from ..resampling import Scheme
 
     traj = model.simulate(n_steps, seed=seed)
     y = np.ascontiguousarray(traj.y, dtype=np.float64)
     u = model.input_array(traj.u, n_steps)
-    n_per = max(int(round(n_particles / n_filters)), 1) if method == "multipdf" else n_particles
-    thr = 0.5 * n_per if ess_threshold is None else float(ess_threshold)
+    m = Method.parse(method)
+    n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else n_particles
+    thr = ess_count(ess_threshold, n_per)
+    code = Method.BOOTSTRAP if m == Method.MULTIPDF else m
     p = model.params()
     with counting() as cnt:
         rng = CountingGenerator(np.random.default_rng(seed), cnt)
-        G = n_filters if method == "multipdf" else 1
+        G = n_filters if m == Method.MULTIPDF else 1
         x = _wrap(np.empty((G, n_per, model.n_x)), mem=True)
         M = n_steps
         est, var = np.empty((G, M, model.n_x)), np.empty((G, M, model.n_x))
@@ -458,8 +462,8 @@ def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: 
         resampled, degen = np.zeros((G, M), dtype=bool), np.zeros((G, M), dtype=bool)
 
         yc, uc = _wrap(y, mem=True), _wrap(u, mem=True)
-        numpy_backend.run_group(_CountingModel(model), p, rng, yc, uc, x, _METHOD_CODES[method],
-                                _SCHEME_CODES[resampling], thr, est, var, ess, inc, resampled, degen)
+        numpy_backend.run_group(_CountingModel(model), p, rng, yc, uc, x, int(code),
+                                int(Scheme.parse(resampling)), thr, est, var, ess, inc, resampled, degen)
     return cnt.as_dict()
 
 
@@ -494,12 +498,13 @@ def _scalar_t(t):
 
 
 def _validate(model, n_steps, n_particles, method, n_filters, resampling):
-    from ..resampling import SCHEMES
+    from ..filters.methods import PARTICLE_METHODS, Method
+    from ..resampling import Scheme
 
-    if method not in METHODS:
-        raise PfbenchError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if resampling not in SCHEMES:
-        raise PfbenchError(f"unknown resampling scheme {resampling!r}; choose one of {', '.join(SCHEMES)}")
+    if Method.parse(method).family != "particle":
+        raise PfbenchError(f"operation counts cover the particle methods {', '.join(PARTICLE_METHODS)}; "
+                           f"got {method!r}")
+    Scheme.parse(resampling)
     if int(n_steps) < 1:
         raise PfbenchError(f"n_steps must be >= 1, got {n_steps}")
     if int(n_particles) < 1:

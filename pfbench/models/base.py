@@ -128,6 +128,63 @@ class StateSpaceModel:
         """Measurement y_t = h(x_t) + noise for simulation; returns (n, n_y)."""
         raise NotImplementedError
 
+    # ----- optional structure: conditionally linear-Gaussian substructure (method="mpf") ------
+    #: Indices of the states x^l that form a conditionally linear-Gaussian substructure
+    #: ([Schon2005] eq. 3); the other states are x^n (the particles). None: no structure declared.
+    #: A model that sets it implements the four ``cl_*`` members below.
+    linear_states: tuple[int, ...] | None = None
+
+    @staticmethod
+    def cl_transition(xn, u, t, p):  # pragma: no cover - optional
+        """The transition given x^n_{t-1} = ``xn`` (n, d_n) ([Schon2005] eq. 3a-3b)::
+
+            x^n_t = f^n + A^n x^l_{t-1} + w^n,   x^l_t = f^l + A^l x^l_{t-1} + w^l
+
+        Returns (f^n (n, d_n), A^n (n, d_n, d_l), f^l (n, d_l), A^l (n, d_l, d_l)).
+        """
+        raise NotImplementedError
+
+    @staticmethod
+    def cl_observation(xn, xl, u, t, p):  # pragma: no cover - optional
+        """The measurement linearised in x^l at ``xl`` (n, d_l): y_t = h + C (x^l_t - xl) + e.
+
+        Returns (h (n, n_y), C (n, n_y, d_l)); exact, and C independent of ``xl``, when y is
+        linear in x^l (h = h(x^n) + C(x^n) xl, [Schon2005] eq. 3c).
+        """
+        raise NotImplementedError
+
+    def cl_noise(self):  # pragma: no cover - optional
+        """(Q (n_x, n_x), R (n_y, n_y)): covariances of (w^n, w^l) in full-state order and of e."""
+        raise NotImplementedError
+
+    def cl_prior(self):  # pragma: no cover - optional
+        """(m0 (d_l,), P0 (d_l, d_l)): Gaussian prior of x^l; x^n starts from :meth:`initial`."""
+        raise NotImplementedError
+
+    # ----- optional structure: a proposal (method="guided") ---------------------------
+    #: How the model helps ``method="guided"``: None (not supported), ``"proposal"`` (the model's
+    #: own proposal: :meth:`proposal` and :meth:`proposal_log_weight`), or ``"optimal"`` (the
+    #: locally optimal proposal p(x_t | x_{t-1}, y_t): :meth:`proposal` samples it and
+    #: :meth:`predictive_log_likelihood` gives its weight p(y_t | x_{t-1})).
+    proposal_kind: str | None = None
+    #: standard normals per particle and step that :meth:`proposal` takes
+    n_proposal_noise: int | None = None
+
+    @staticmethod
+    def proposal(x_prev, y, u, t, noise, p):  # pragma: no cover - optional
+        """Draw x_t ~ q(x_t | x_{t-1} = ``x_prev``, y_t) with standard normals ``noise``; (n, n_x)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def proposal_log_weight(x, x_prev, y, u, t, p):  # pragma: no cover - optional
+        """log p(y_t | x_t) + log p(x_t | x_{t-1}) - log q(x_t | x_{t-1}, y_t) per particle; (n,)."""
+        raise NotImplementedError
+
+    @staticmethod
+    def predictive_log_likelihood(y, x_prev, u, t, p):  # pragma: no cover - optional
+        """log p(y_t | x_{t-1}) per particle (the weight of the locally optimal proposal); (n,)."""
+        raise NotImplementedError
+
     # ----- non-kernel helpers ----------------------------------------------------------
     def inputs(self, rng: np.random.Generator, n_steps: int) -> np.ndarray | None:
         """Input sequence for a simulation (n_steps, n_u); None for autonomous models."""

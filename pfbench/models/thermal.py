@@ -105,7 +105,7 @@ class _TwoInertial(StateSpaceModel):
         self.y0 = float(y0)
 
     def init_from_log(self, cols: dict) -> None:
-        """Called by :func:`pfbench.datalog.load_log`: y(0) from the log's first row."""
+        """Called by :func:`pfbench.plants.datalog.load_log`: y(0) from the log's first row."""
         self.set_initial_measurement(cols["y"][0])
 
     def params(self):
@@ -117,7 +117,7 @@ class _TwoInertial(StateSpaceModel):
         return default_inputs(n_steps)
 
     def log_arrays(self, cols: dict):
-        """(y, u) for this model from the validated columns of a log (see pfbench.datalog)."""
+        """(y, u) for this model from the validated columns of a log (see pfbench.plants.datalog)."""
         return cols["y"].reshape(-1, 1), _mode_inputs(cols)
 
     log_columns = ("u1", "u2")

@@ -86,19 +86,11 @@ def code_fingerprint(model: str) -> str:
     import sys
 
     from .. import models
-    from ..backends import numba_backend
-    from .. import resampling
-    from ..backends import numba_resampling, numpy_backend
-    from ..filters import api, marginalized
-    from ..models import base
+    from ..backends.cache import package_fingerprint
 
     cls = models.model_class(model)
-    h = hashlib.sha256()
-    for mod in (sys.modules[cls.__module__], base, api, marginalized, resampling, numba_resampling,
-                numpy_backend, sys.modules[__name__]):
-        h.update(inspect.getsource(mod).encode())
-    h.update(numba_backend._TEMPLATE.read_bytes())
-    h.update(np.__version__.encode())
+    h = hashlib.sha256(package_fingerprint().encode())
+    h.update(inspect.getsource(sys.modules[cls.__module__]).encode())
     return h.hexdigest()[:16]
 
 
@@ -129,7 +121,7 @@ def run_multipdf(model, y, u, n_particles: int, n_filters: int, seed, backend: s
                  resampling: str = "systematic"):
     """MultiPDF / bootstrap estimates, equal to ``pfbench.run_filter(..., method="multipdf")``
     (same streams, same kernels) but without its per-call thread pool. Returns (est, sub_est)."""
-    from ..filters.api import run_groups, streams
+    from ..filters.particle import run_groups, streams
 
     n_per = max(int(round(n_particles / n_filters)), 1)
     out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method="multipdf", n_per=n_per,

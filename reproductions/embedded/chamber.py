@@ -1,6 +1,6 @@
 """[Embedded] §5.2, §5.3, §6 and Appendix A: PF estimation in the heating/cooling chamber.
 
-Without ``--data`` every experiment runs on the simulated chamber (:mod:`pfbench.chamber`, a plant
+Without ``--data`` every experiment runs on the simulated chamber (:mod:`pfbench.plants.chamber`, a plant
 that is *not* the filter's model); with ``--data log.csv`` the same estimators run on the given log
 (every experiment of the recipe uses that one log; no truth, so only eq. 13 errors).
 
@@ -19,9 +19,9 @@ from functools import lru_cache
 import numpy as np
 import pandas as pd
 
-from pfbench import chamber
-from pfbench.datalog import read_log
-from pfbench.filters.api import run_filter
+from pfbench.plants import chamber
+from pfbench.plants.datalog import read_log
+from pfbench.filters import run_filter
 from pfbench.models import get as get_model
 from pfbench.models.thermal import _mode_inputs
 from pfbench.recipes import recipe

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pfbench import rtd
+from pfbench.plants import rtd
 from pfbench.errors import PfbenchError
 from pfbench.recipes import recipe
 

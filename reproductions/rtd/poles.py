@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pfbench import kalman, rtd
+from pfbench import kalman
+from pfbench.plants import rtd
 from pfbench.recipes import recipe
 
 

@@ -9,14 +9,14 @@ deterministic residual resampling, hold extended to 0.4 s, identical random numb
 three cases (same plant / filter streams per run). Quick mode: 100 runs; ``--full``: 1000.
 
 Loss = eq. 4.16 summed over the run (gamma = 0.1); failure = our definition in
-:mod:`pfbench.control.loss`. Runs go to 2 worker processes, each run one compiled kernel.
+:mod:`pfbench.plants.pmsm_control.loss`. Runs go to 2 worker processes, each run one compiled kernel.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from pfbench.control.closed_loop import LoopConfig, Scenario, run_batch, run_once
+from pfbench.plants.pmsm_control.closed_loop import LoopConfig, Scenario, run_batch, run_once
 from pfbench.filters.optimal_proposal import Q_THETA_FILTER, step_time_us
 from pfbench.recipes import recipe
 

@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 import pandas as pd
 
-from pfbench.control.closed_loop import LoopConfig, run_batch, run_once
+from pfbench.plants.pmsm_control.closed_loop import LoopConfig, run_batch, run_once
 from pfbench.filters.optimal_proposal import step_time_us
 from pfbench.recipes import recipe
 

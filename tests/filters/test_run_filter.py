@@ -38,8 +38,8 @@ def test_numpy_and_numba_agree_for_every_method(name, params):
 def test_backends_agree_for_every_resampling_scheme(scheme):
     model = models.get("ob1")
     traj = model.simulate(30, seed=1)
-    a = _run(model, traj, "numpy", "sir", resampling=scheme, ess_threshold=80)
-    b = _run(model, traj, "numba", "sir", resampling=scheme, ess_threshold=80)
+    a = _run(model, traj, "numpy", "sir", resampling=scheme, ess_threshold=2 / 3)
+    b = _run(model, traj, "numba", "sir", resampling=scheme, ess_threshold=2 / 3)
     assert np.max(np.abs(a.estimates - b.estimates)) <= 1e-9
 
 

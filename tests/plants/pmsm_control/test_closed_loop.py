@@ -1,7 +1,7 @@
 """Closed-loop PMSM runs ([Thesis] §4.4): backends agree, streams are common, EKF runs."""
 import numpy as np
 
-from pfbench.control.closed_loop import LoopConfig, Scenario, run_batch, run_once
+from pfbench.plants.pmsm_control.closed_loop import LoopConfig, Scenario, run_batch, run_once
 
 SHORT = Scenario(ramp_s=0.02, hold_s=0.01, omega_final=2.0)
 

@@ -26,12 +26,12 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from ...backends.cache import njit
 
-from ..errors import PfbenchError
-from ..filters.optimal_proposal import (POINT_MODES, Q_THETA_FILTER, filter_params,
+from ...errors import PfbenchError
+from ...filters.optimal_proposal import (POINT_MODES, Q_THETA_FILTER, filter_params,
                                         point_estimate, smc_init, smc_step, weights_from_log)
-from ..models.pmsm import Pmsm, jacobian, pmsm_step, wrap_angle
+from ...models.pmsm import Pmsm, jacobian, pmsm_step, wrap_angle
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
@@ -106,7 +106,7 @@ def _closed_loop_smc_py(mp, fp, cp, consts, S, w_ref, x0, n, point_mode, control
                 hist_w[t, i] = wn[i]
 
 
-_closed_loop_smc_nb = njit(cache=True, nogil=True)(_closed_loop_smc_py)
+_closed_loop_smc_nb = njit(nogil=True)(_closed_loop_smc_py)
 
 
 @dataclass
@@ -202,7 +202,7 @@ def run_once(cfg: LoopConfig, seed: int = 0, run: int = 0) -> dict:
 
 def _run_ekf(model, mp, cp, w_ref, x0, rng_plant, cfg, th_mu):
     """EKF in the loop (thesis §4.2.2): Jacobian eq. 4.26, PI on the EKF mean."""
-    from ..kalman import ekf_predict, ekf_update
+    from ...filters.kalman import ekf_predict, ekf_update
 
     M = w_ref.shape[0]
     Q = np.diag(model.q)

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import PfbenchError
-from .models.base import StateSpaceModel, Trajectory
+from ..errors import PfbenchError
+from ..models.base import StateSpaceModel, Trajectory
 
 GAP_FACTOR = 1.5
 
@@ -122,7 +122,7 @@ def load_log(path, model: StateSpaceModel) -> Trajectory:
 
 
 def write_log(path, run, decimals: int = 4) -> Path:
-    """Write a :class:`pfbench.chamber.ChamberRun` as a log CSV (atomically)."""
-    from . import io
+    """Write a :class:`pfbench.plants.chamber.ChamberRun` as a log CSV (atomically)."""
+    from .. import io
 
     return io.write_csv(path, run.frame().round(decimals))

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import PfbenchError
-from .kalman import steady_state_kf, time_varying_kf
+from ..errors import PfbenchError
+from ..filters.kalman import steady_state_kf, time_varying_kf
 
 TF_NUM = (2.278, 0.1711)                 # eq. 52 numerator
 TF_DEN = (1.0, 2.488, 0.1695)            # eq. 52 denominator

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .errors import PfbenchError
+from ..errors import PfbenchError
 
 RESOLUTION = 0.0625          # DS18B20 12-bit resolution, degC
 FAN_MIN, FAN_MAX = 30.0, 100.0
@@ -87,7 +87,7 @@ class ChamberRun:
     info: dict = field(default_factory=dict)
 
     def frame(self):
-        """The log as a DataFrame with the columns of :mod:`pfbench.datalog`."""
+        """The log as a DataFrame with the columns of :mod:`pfbench.plants.datalog`."""
         import pandas as pd
 
         return pd.DataFrame({"time_s": self.time_s, "y": self.y, "u1": self.u1, "u2": self.u2,

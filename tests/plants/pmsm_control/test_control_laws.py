@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from pfbench.control import (FailureCriterion, PIGains, cautious_control, cc_constants,
+from pfbench.plants.pmsm_control import (FailureCriterion, PIGains, cautious_control, cc_constants,
                              estimation_failed, pi_dq_control, pi_update, reference_speed,
                              tracking_loss)
 from pfbench.models.pmsm import Pmsm

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from pfbench import chamber
+from pfbench.plants import chamber
 
 
 @pytest.fixture(scope="module")

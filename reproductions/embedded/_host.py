@@ -69,7 +69,7 @@ def time_filter(model, y, u=None, *, backend: str, dtype: str, n_particles: int,
     Also measures package energy with RAPL around the timed runs when available
     (``energy_j`` per run, else None).
     """
-    from .filters.api import run_filter
+    from pfbench.filters import run_filter
 
     kw = dict(method=method, n_particles=n_particles, n_filters=n_filters, backend=backend, dtype=dtype,
               common_random_numbers=True, n_threads=1)

@@ -1,11 +1,12 @@
-"""Tests of pfbench.rtd ([RTD]): models, RC fit, boundary layer, data logs and the rtd recipes."""
+"""Tests of pfbench.plants.rtd ([RTD]): models, RC fit, boundary layer, data logs and the rtd recipes."""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from pfbench import kalman, rtd
+from pfbench import kalman
+from pfbench.plants import rtd
 from pfbench.errors import PfbenchError
 
 

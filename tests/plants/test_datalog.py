@@ -1,13 +1,14 @@
-"""CSV log loader (pfbench.datalog) and `pfbench run --data`."""
+"""CSV log loader (pfbench.plants.datalog) and `pfbench run --data`."""
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pfbench import chamber, models
+from pfbench import models
+from pfbench.plants import chamber
 from pfbench.cli import main
-from pfbench.datalog import load_log, read_log, write_log
+from pfbench.plants.datalog import load_log, read_log, write_log
 from pfbench.errors import PfbenchError
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "reproductions" / "embedded" / "example_log.csv"

@@ -1,0 +1,74 @@
+"""Validation shared by every filter entry point: measurements, inputs, seeds, backends."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..models.base import StateSpaceModel
+
+BACKENDS = ("numpy", "numba")
+DTYPES = ("float64", "float32")
+
+
+def check_inputs(model, y, u):
+    """``y`` as a C-contiguous float64 (M, n_y) array and ``u`` as (M, n_u), or an InputError.
+
+    NaN/inf measurements or inputs are rejected up front with the first bad step named.
+    """
+    if not isinstance(model, StateSpaceModel):
+        raise InputError("model must be a pfbench StateSpaceModel (see pfbench.models.get)")
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim == 1:
+        y = y.reshape(-1, 1) if model.n_y == 1 else y.reshape(1, -1)
+    if y.ndim != 2 or y.shape[1] != model.n_y or y.shape[0] < 1:
+        raise InputError(f"y must have shape (n_steps, {model.n_y}), got {np.shape(y)}")
+    bad = ~np.isfinite(y).all(axis=1)
+    if bad.any():
+        t = int(np.argmax(bad))
+        raise InputError(f"measurement y at step {t} is not finite ({y[t].tolist()}); "
+                         "remove or interpolate bad samples first")
+    u = model.input_array(u, y.shape[0])
+    if not np.isfinite(u).all():
+        t = int(np.argmax(~np.isfinite(u).all(axis=1)))
+        raise InputError(f"input u at step {t} is not finite")
+    return np.ascontiguousarray(y), np.ascontiguousarray(u)
+
+
+def check_backend(backend: str) -> str:
+    if backend not in BACKENDS:
+        raise InputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    return backend
+
+
+def check_dtype(dtype: str) -> str:
+    if dtype not in DTYPES:
+        raise InputError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
+    return dtype
+
+
+def seed_sequence(seed) -> np.random.SeedSequence:
+    """``seed`` (int or SeedSequence) as a SeedSequence; a negative or non-integer seed is an InputError."""
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    try:
+        return np.random.SeedSequence(seed)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"seed must be a non-negative integer, got {seed!r}") from exc
+
+
+def ess_count(ess_threshold, n_per: int) -> float:
+    """The resampling threshold as a particle count from a *fraction* of N_p in (0, 1].
+
+    ``ess_threshold`` is the fraction of the (sub-filter) particle count below which N_eff
+    triggers resampling, as in the ``particles`` library (default 0.5). Anything outside (0, 1]
+    is refused: a count such as 12 would silently never resample.
+    """
+    frac = 0.5 if ess_threshold is None else ess_threshold
+    try:
+        frac = float(frac)
+    except (TypeError, ValueError):
+        raise InputError(f"ess_threshold must be a number in (0, 1], got {ess_threshold!r}") from None
+    if not (0.0 < frac <= 1.0):
+        raise InputError(f"ess_threshold is a fraction of N_p in (0, 1] (resample when N_eff < "
+                         f"ess_threshold * N_p), got {ess_threshold!r}")
+    return frac * n_per

@@ -1,0 +1,63 @@
+"""The one table of filtering methods. Every layer (``run_filter``, the kernels, the CLI, sweeps,
+the operation counter) takes its method names and codes from here.
+
+The integer value of a :class:`Method` is the code the compiled particle kernels branch on; numba
+compiles ``IntEnum`` members as integer constants.
+"""
+from __future__ import annotations
+
+import enum
+
+from ..errors import InputError
+
+
+class Method(enum.IntEnum):
+    """Filtering methods of :func:`pfbench.run_filter`.
+
+    ========== ============================================================================
+    bootstrap  resample every step ([Embedded] Alg. 1; [MultiPDF] Alg. 1)
+    sir        resample when N_eff < threshold ([MultiPDF] eq. 8; [Thesis] Alg. 3)
+    sis        never resample ([Thesis] Alg. 2)
+    asir       auxiliary SIR, first-stage weights p(y_t | f(x_{t-1})) ([Thesis] Alg. 6)
+    multipdf   N_f bootstrap sub-filters, estimates averaged ([MultiPDF] Alg. 2, eq. 9)
+    mpf        marginalized PF on the model's linear-Gaussian substructure ([Schon2005] Alg. 1)
+    guided     the model's own proposal, or the locally optimal one ([Doucet2000]; [Thesis] §4.2.1)
+    kalman     (extended) Kalman filter on a model whose every state is linear-Gaussian
+    ========== ============================================================================
+    """
+
+    BOOTSTRAP = 0
+    SIR = 1
+    SIS = 2
+    ASIR = 3
+    MULTIPDF = 4
+    MPF = 5
+    GUIDED = 6
+    KALMAN = 7
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+    @property
+    def family(self) -> str:
+        """``particle`` (the bootstrap kernel), ``mpf``, ``guided`` or ``kalman``."""
+        return _FAMILY.get(self, "particle")
+
+    @classmethod
+    def parse(cls, name) -> "Method":
+        """The method called ``name`` (case-insensitive), or an InputError listing the choices."""
+        if isinstance(name, Method):
+            return name
+        try:
+            return cls[str(name).strip().upper()]
+        except KeyError:
+            raise InputError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}") from None
+
+
+_FAMILY = {Method.MPF: "mpf", Method.GUIDED: "guided", Method.KALMAN: "kalman"}
+
+#: method names in table order
+METHODS = tuple(m.label for m in Method)
+#: the methods the bootstrap-family particle kernel runs
+PARTICLE_METHODS = tuple(m.label for m in Method if m.family == "particle")

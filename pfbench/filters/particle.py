@@ -1,0 +1,152 @@
+"""Bootstrap, SIR, SIS, ASIR and MultiPDF: the particle filters run by the bootstrap-family kernel.
+
+Random numbers
+--------------
+Every random number comes from ``numpy.random.Generator`` objects, consumed in the order
+documented in :mod:`pfbench.backends.numpy_backend`; numba draws bit-identical numbers from the
+same generators, so both backends give the same estimates.
+
+* ``common_random_numbers=True``: one stream, ``numpy.random.default_rng(seed)``; the N_f
+  MultiPDF sub-filters take their draws from it in turn at every step (so they run one after
+  the other). Use it to compare backends or methods on exactly the same random numbers.
+* ``common_random_numbers=False`` (default): with one filter, the same single stream; with
+  N_f > 1, sub-filter l draws from its own stream ``default_rng(SeedSequence(seed).spawn(N_f)[l])``
+  so the sub-filters can run in parallel threads (numba releases the GIL). Still reproducible
+  for a given (seed, N_f), and still identical across backends.
+
+MultiPDF ([MultiPDF] Alg. 2): N_f independent bootstrap sub-filters with round(N_p / N_f)
+particles each; the estimate at every step is the mean of the sub-filter estimates (eq. 9), the
+variance is the law of total variance over the sub-filters, and ``loglik`` is the log of the mean
+of the sub-filters' (unbiased) likelihood estimates, with increments that sum to it. When
+round(N_p / N_f) * N_f differs from N_p, ``n_particles`` reports the particles actually used and
+``info["n_particles_requested"]`` the request (each sub-filter is off by at most half a particle).
+
+Numerical trouble
+-----------------
+Weights are handled in log space (log-sum-exp), so an outlier that makes every likelihood
+underflow in linear scale still gives finite, correctly normalised weights. NaN or +inf
+log-likelihoods count as zero likelihood. If *every* particle has zero likelihood at a step,
+the step is flagged in ``degenerate``, the measurement is ignored (weights kept), the filter
+carries on, and ``loglik`` becomes -inf (the estimate of p(y) really is 0); estimates never
+become NaN. NaN/inf measurements are rejected up front with the first bad step named.
+"""
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from .. import backends
+from ..errors import InputError
+from ..resampling import Scheme
+from .inputs import check_backend, check_dtype, ess_count, seed_sequence
+from .methods import Method
+from .result import FilterResult, mixture_loglik_increments, total_variance
+
+
+def streams(seed, n_filters: int, common_random_numbers: bool) -> list[np.random.Generator]:
+    """The random streams of a run (see the module docstring)."""
+    ss = seed_sequence(seed)
+    if common_random_numbers or n_filters == 1:
+        return [np.random.default_rng(ss)]
+    return [np.random.default_rng(s) for s in ss.spawn(n_filters)]
+
+
+def split_particles(n_particles: int, n_filters: int) -> int:
+    """Particles per MultiPDF sub-filter, round(N_p / N_f) (at least 1)."""
+    return max(int(round(n_particles / n_filters)), 1)
+
+
+def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: int = 1,
+                 resampling="systematic", ess_threshold=None, backend: str = "numba",
+                 dtype: str = "float64", seed=0, common_random_numbers: bool = False,
+                 n_threads: int | None = None) -> FilterResult:
+    """Run a bootstrap-family filter on validated ``y``/``u`` (see :func:`pfbench.run_filter`)."""
+    method = Method.parse(method)
+    scheme = Scheme.parse(resampling)
+    check_backend(backend)
+    check_dtype(dtype)
+    if method != Method.MULTIPDF and n_filters != 1:
+        raise InputError(f"n_filters={n_filters} needs method='multipdf'")
+    if n_filters > n_particles:
+        raise InputError(f"n_filters ({n_filters}) cannot exceed n_particles ({n_particles})")
+    n_per = split_particles(n_particles, n_filters) if method == Method.MULTIPDF else n_particles
+    if method != Method.SIR and ess_threshold is not None:
+        raise InputError(f"ess_threshold applies to method 'sir' only (got method {method.label!r})")
+    thr = ess_count(ess_threshold, n_per)
+    rngs = streams(seed, n_filters, common_random_numbers)
+    out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
+                              resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
+                              n_threads=n_threads)
+    est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
+    increments = mixture_loglik_increments(inc)
+    mean, variance = total_variance(est, var)
+    info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
+            "resampling": scheme.label, "common_random_numbers": bool(common_random_numbers),
+            "n_streams": len(rngs)}
+    if n_per * n_filters != n_particles:
+        info["n_particles_requested"] = n_particles
+        info["note"] = (f"N_p = {n_particles} does not split evenly into {n_filters} sub-filters: "
+                        f"{n_filters} x {n_per} = {n_per * n_filters} particles were used")
+    return FilterResult(
+        estimates=mean, variances=variance, loglik=float(increments.sum()),
+        loglik_increments=increments, ess=ess.mean(axis=0), n_resampled=int(out["resampled"].sum()),
+        degenerate=out["degen"].any(axis=0), elapsed_s=elapsed, method=method.label, backend=backend,
+        dtype=dtype, n_particles=n_per * n_filters, n_filters=n_filters, sub_estimates=est,
+        sub_variances=var, sub_ess=ess, info=info)
+
+
+def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampling,
+               ess_threshold: float, backend: str, dtype: str = "float64", n_threads: int | None = None):
+    """Run ``n_filters`` filters of ``n_per`` particles on validated, contiguous ``y``/``u``.
+
+    The filters are split evenly over the random streams ``rngs`` (one group per stream, see
+    :func:`streams`); on numba, groups run in parallel threads (``n_threads``; default all cores,
+    1 to stay sequential). Returns ``(arrays, elapsed_s)`` with per-filter arrays ``est``/``var``
+    (N_f, M, n_x), ``ess``/``inc``/``resampled``/``degen`` (N_f, M). ``method`` is a particle-family
+    :class:`Method` (MultiPDF sub-filters run as bootstrap), ``resampling`` a :class:`Scheme` and
+    ``ess_threshold`` a particle count. Used by :func:`run_particle` and by the sweep runner.
+    """
+    be = backends.get(backend)
+    M, n_x = y.shape[0], model.n_x
+    p = model.params()
+    n_groups = len(rngs)
+    per_group = n_filters // n_groups
+    ptype = np.float32 if dtype == "float32" else np.float64
+    x = np.empty((n_filters, n_per, n_x), dtype=ptype)
+    out = {"est": np.empty((n_filters, M, n_x)), "var": np.empty((n_filters, M, n_x)),
+           "ess": np.empty((n_filters, M)), "inc": np.empty((n_filters, M)),
+           "resampled": np.zeros((n_filters, M), dtype=np.bool_),
+           "degen": np.zeros((n_filters, M), dtype=np.bool_)}
+    method = Method.parse(method)
+    if method.family != "particle":
+        raise InputError(f"run_groups runs the particle methods, not {method.label!r}")
+    code = int(Method.BOOTSTRAP if method == Method.MULTIPDF else method)  # MultiPDF sub-filters
+    scheme = int(Scheme.parse(resampling))
+    if backend == "numba":
+        be.warm_up(model, p, y, u, ptype)  # compile (or load from cache) outside the timed region
+
+    def job(gi: int):
+        sl = slice(gi * per_group, (gi + 1) * per_group)
+        be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, ess_threshold, out["est"][sl],
+                     out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl])
+
+    t0 = time.perf_counter()
+    workers = min(n_groups, n_threads or _cores())
+    if n_groups > 1 and backend == "numba" and workers > 1:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(job, range(n_groups)))
+    else:
+        for gi in range(n_groups):
+            job(gi)
+    return out, time.perf_counter() - t0
+
+
+def _cores() -> int:
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover
+        return os.cpu_count() or 1

@@ -1,0 +1,75 @@
+"""``pfbench.run_filter``: one entry point for every filtering method of :class:`Method`."""
+from __future__ import annotations
+
+from ..errors import InputError
+from .inputs import check_inputs
+from .methods import Method
+from .result import FilterResult
+
+
+def _count(value, name: str, minimum: int = 1) -> int:
+    try:
+        v = int(value)
+        ok = v == value
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok or v < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return v
+
+
+def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int | None = None,
+               n_filters: int = 1, resampling: str = "systematic", ess_threshold: float | None = None,
+               backend: str = "numba", dtype: str = "float64", seed=0,
+               common_random_numbers: bool = False, n_threads: int | None = None) -> FilterResult:
+    """Filter measurements ``y`` (M, n_y) with inputs ``u`` (M, n_u); returns a :class:`FilterResult`.
+
+    Parameters
+    ----------
+    method : a :class:`~pfbench.filters.methods.Method` name: ``bootstrap`` ([Embedded] Alg. 1),
+        ``sir`` (resample when N_eff < ``ess_threshold`` N_p; [MultiPDF] eq. 8), ``sis``,
+        ``asir`` ([Thesis] Alg. 6), ``multipdf`` ([MultiPDF] Alg. 2), ``mpf`` (marginalized PF on
+        the model's declared linear-Gaussian substructure, [Schon2005]), ``guided`` (the model's
+        proposal or the locally optimal one) or ``kalman`` ((extended) Kalman filter on a model
+        whose every state is in its linear substructure).
+    n_particles : N_p, total number of particles (required by every method but ``kalman``).
+    n_filters : N_f, MultiPDF sub-filters (round(N_p/N_f) particles each); 1 otherwise.
+    resampling : a :class:`~pfbench.resampling.Scheme` name.
+    ess_threshold : SIR and guided: resample when N_eff < ess_threshold * N_p; a fraction in
+        (0, 1], default 0.5 (as in the ``particles`` library).
+    backend : ``numpy`` (reference) or ``numba`` (compiled; first call compiles, then cached).
+    dtype : particle storage precision, ``float64`` or ``float32``.
+    seed : int or ``numpy.random.SeedSequence``.
+    common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
+    n_threads : threads for parallel MultiPDF sub-filters (numba, CRN off); default: all cores.
+    """
+    m = Method.parse(method)
+    if n_particles is None:
+        if m.family != "kalman":
+            raise InputError(f"method {m.label!r} needs n_particles")
+        n_particles = 1
+    n_particles = _count(n_particles, "n_particles")
+    n_filters = _count(n_filters, "n_filters")
+    y, u = check_inputs(model, y, u)
+    if m.family == "particle":
+        from .particle import run_particle
+
+        return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
+                            resampling=resampling, ess_threshold=ess_threshold, backend=backend,
+                            dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
+                            n_threads=n_threads)
+    if n_filters != 1:
+        raise InputError(f"n_filters={n_filters} needs method='multipdf'")
+    if m.family == "mpf":
+        from .marginalized import run_mpf
+
+        return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
+                       seed=seed)
+    if m.family == "kalman":
+        from .marginalized import run_kalman
+
+        return run_kalman(model, y, u)
+    from .guided import run_guided
+
+    return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
+                      ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed)
