@@ -8,6 +8,11 @@ Stable API::
     res = pfbench.run_filter(model, traj.y, traj.u, method="bootstrap", n_particles=1000,
                              backend="numba", seed=1)
     pfbench.metrics.armse(res.estimates, traj.x)
+
+Also at the top level: ``Method`` (the method table), ``FilterResult`` (what every filter returns),
+``run_mpf`` / ``run_kalman`` / ``run_guided`` (the structured filters, also reachable through
+``run_filter(method=...)``), ``kalman`` (KF / EKF / DARE / steady-state KF), ``sweep``
+(Monte Carlo sweeps), ``resampling``, ``metrics`` and the error types.
 """
 from importlib import metadata as _metadata
 
@@ -26,6 +31,14 @@ def __getattr__(name):
         from . import filters
 
         return getattr(filters, name)
+    if name in ("run_mpf", "run_kalman"):
+        from .filters import marginalized
+
+        return getattr(marginalized, name)
+    if name == "run_guided":
+        from .filters import guided
+
+        return guided.run_guided
     if name in ("resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends", "sweep",
                 "plants"):
         import importlib
@@ -34,5 +47,6 @@ def __getattr__(name):
     raise AttributeError(name)
 
 
-__all__ = ["models", "run_filter", "FilterResult", "Method", "kalman", "sweep", "PfbenchError",
+__all__ = ["models", "run_filter", "FilterResult", "Method", "run_mpf", "run_kalman", "run_guided",
+           "kalman", "sweep", "PfbenchError",
            "InputError", "DataError", "UnsupportedError", "NumericalError", "__version__"]

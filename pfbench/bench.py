@@ -131,7 +131,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     multipdf = {"particles": n_mp, "filters": 2, "ns_1_thread": one, "ns_2_threads": two,
                 "speedup": one / two, "cores": os.cpu_count()}
     # PMSM SMC with the optimal proposal (thesis §4.2.1): must fit the drive's 125 us period
-    from .filters.optimal_proposal import step_time_us
+    from .plants.pmsm_control.smc import step_time_us
 
     pmsm = {"particles": 60, "period_us": 125.0,
             "us_per_step_mean": step_time_us(n_particles=60, point="mean", repeats=max(1, repeats // 2)),

@@ -1,23 +1,34 @@
 """The ``pfbench`` command line (click).
 
-Every user error ends in one line ``error: ...`` on stderr and exit code 2 (never a
-traceback); Ctrl-C ends with exit code 130. Subcommand groups of the subsystems
-(``pfbench mcu``, ``pfbench sweep``) live next to their code and are added here.
+Error policy (one place, :meth:`PfbenchGroup.main`):
+
+* a user error -- a :class:`~pfbench.errors.PfbenchError` (bad value, name, option, file, a
+  method the model does not support) or a click usage error -- is one line ``error: ...`` on
+  stderr and exit code 2 (``pfbench --debug ...`` adds the traceback);
+* Ctrl-C ends with exit code 130;
+* anything else is a bug in pfbench: its traceback and exit code 1.
+
+Subcommand groups of the subsystems (``pfbench mcu``, ``pfbench sweep``, ``pfbench bench``) live
+next to their code and are added here. Every ``KEY=VALUE`` flag is read by
+:func:`pfbench.options.parse_key_values`; every ``--model`` by :func:`pfbench.models.parse_spec`.
 """
 from __future__ import annotations
 
 import importlib
 import json
+import os
 import sys
+import traceback
 
 import click
 
 from .errors import PfbenchError
+from .filters.inputs import BACKENDS, DTYPES
+from .filters.methods import METHODS
+from .options import parse_key_values
+from .resampling import SCHEMES
 
-METHODS = ("bootstrap", "sir", "sis", "multipdf", "asir")
-BACKENDS = ("numpy", "numba")
-DTYPES = ("float64", "float32")
-RESAMPLING = ("systematic", "stratified", "multinomial", "residual", "residual_deterministic")
+DEBUG_ENV = "PFBENCH_DEBUG"
 
 
 def _one_line(msg: str) -> str:
@@ -25,9 +36,12 @@ def _one_line(msg: str) -> str:
 
 
 class PfbenchGroup(click.Group):
-    """A click group that reports usage errors as one line and exit code 2."""
+    """The root group: applies the error policy of the module docstring."""
+
+    debug = False
 
     def main(self, args=None, prog_name=None, **extra):  # noqa: D401
+        self.debug = os.environ.get(DEBUG_ENV, "") not in ("", "0")
         try:
             rv = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
         except click.exceptions.NoArgsIsHelpError as exc:
@@ -50,9 +64,16 @@ class PfbenchGroup(click.Group):
         except click.ClickException as exc:
             click.echo(f"error: {_one_line(exc.format_message())}", err=True)
             sys.exit(2)
-        except (PfbenchError, ValueError) as exc:
+        except PfbenchError as exc:
+            if self.debug:
+                traceback.print_exc()
             click.echo(f"error: {_one_line(exc)}", err=True)
             sys.exit(2)
+        except Exception:  # noqa: BLE001 - anything else is a bug: show where it happened
+            traceback.print_exc()
+            click.echo("error: internal error in pfbench (a bug; the traceback above shows where). "
+                       "Please report it.", err=True)
+            sys.exit(1)
         if isinstance(rv, int):
             sys.exit(rv)
         sys.exit(0)
@@ -66,8 +87,16 @@ def positive_int(name: str):
     return cb
 
 
+def _set_debug(ctx, param, value):
+    if value:
+        ctx.find_root().command.debug = True
+    return value
+
+
 @click.group(cls=PfbenchGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="pfbench", prog_name="pfbench")
+@click.option("--debug", is_flag=True, expose_value=False, is_eager=True, callback=_set_debug,
+              help=f"Show the traceback of user errors too (or set {DEBUG_ENV}=1).")
 def main():
     """pfbench: particle and Kalman filter benchmarks and paper reproductions.
 
@@ -76,55 +105,48 @@ def main():
       pfbench list                      # the paper figures/tables we reproduce
       pfbench reproduce fig5            # one recipe, quick mode (--full: paper scale)
       pfbench run --model ob1 --method bootstrap --particles 1000 --steps 1000
+      pfbench run --model ob3:v4 --method mpf --particles 200
       pfbench info                      # CPU, cores, numba threading layer, versions
     """
 
 
 # --------------------------------------------------------------------------- run
-def _model_params(pairs: tuple[str, ...]) -> dict:
-    out = {}
-    for item in pairs:
-        if "=" not in item:
-            raise click.BadParameter(f"expected KEY=VALUE, got {item!r}", param_hint="'--param'")
-        k, v = item.split("=", 1)
-        try:
-            out[k] = json.loads(v)
-        except ValueError:
-            out[k] = v
-    return out
+MODEL_HELP = ("Registered model, optionally with a variant: ob1, ob3:v4 (= --param version=4); "
+              "`pfbench info` lists the models.")
+PARAM_HELP = "Model parameter KEY=VALUE (repeatable; JSON-typed: 3 int, 0.5 float, true, text)."
 
 
 @main.command()
-@click.option("--model", "model_name", required=True, help="Registered model (see `pfbench info`).")
-@click.option("--method", type=click.Choice(METHODS), default="bootstrap", show_default=True)
+@click.option("--model", "model_name", required=True, help=MODEL_HELP)
+@click.option("--method", type=click.Choice(METHODS), default="bootstrap", show_default=True,
+              help="Filter: the particle methods, mpf (marginalized PF on the model's linear "
+                   "substructure), guided (the model's proposal) or kalman.")
 @click.option("--particles", type=int, default=1000, show_default=True, callback=positive_int("particles"),
               help="N_p, total number of particles.")
 @click.option("--filters", type=int, default=1, show_default=True, callback=positive_int("filters"),
               help="N_f, MultiPDF sub-filters.")
 @click.option("--steps", type=int, default=1000, show_default=True, callback=positive_int("steps"),
               help="M, number of time steps to simulate.")
-@click.option("--resampling", type=click.Choice(RESAMPLING), default="systematic", show_default=True)
-@click.option("--ess-threshold", type=float, default=None, help="SIR: resample when N_eff < this.")
+@click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
+@click.option("--ess-threshold", type=float, default=None,
+              help="sir / guided: resample when N_eff < this fraction of N_p, in (0, 1] (default 0.5).")
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
 @click.option("--dtype", type=click.Choice(DTYPES), default="float64", show_default=True)
 @click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--version", "model_version", type=int, default=None, help="Model version (ob3: 1..5).")
-@click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help="Model parameter (repeatable).")
+@click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help=PARAM_HELP)
 @click.option("--data", type=click.Path(dir_okay=False), default=None,
               help="CSV log (time_s, y..., u...) to filter instead of a simulation.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def run(model_name, method, particles, filters, steps, resampling, ess_threshold, backend, dtype,
-        seed, model_version, params, data, as_json):
+        seed, params, data, as_json):
     """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
     import numpy as np
 
     from . import metrics, models
     from .filters import run_filter
 
-    kw = _model_params(params)
-    if model_version is not None:
-        kw["version"] = model_version
-    model = models.get(model_name, **kw)
+    name, kw = models.parse_spec(model_name, parse_key_values(params, "--param"))
+    model = models.get(name, **kw)
     if filters > particles:
         raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
                                  param_hint="'--filters'")
@@ -139,37 +161,47 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
                      seed=seed)
     have_truth = bool(np.all(np.isfinite(traj.x)))
     out = {
-        "model": model_name, "method": method, "backend": backend, "dtype": dtype,
-        "n_particles": particles, "n_filters": filters, "n_steps": traj.n_steps, "seed": seed,
-        "resampling": resampling,
+        "model": name, "params": kw, "method": method, "backend": backend, "dtype": dtype,
+        "n_particles": res.n_particles, "n_filters": res.n_filters, "n_steps": traj.n_steps,
+        "seed": seed, "resampling": resampling,
         "armse": metrics.armse(res.estimates, traj.x) if have_truth else None,
         "rmse": metrics.rmse(res.estimates, traj.x).tolist() if have_truth else None,
         "loglik": res.loglik, "n_resampled": res.n_resampled,
         "n_degenerate_steps": int(res.degenerate.sum()),
         "elapsed_s": res.elapsed_s,
-        "ns_per_particle_step": res.elapsed_s * 1e9 / (particles * traj.n_steps),
+        "ns_per_particle_step": res.ns_per_particle_step,
     }
+    if "n_particles_requested" in res.info:
+        out["n_particles_requested"] = res.info["n_particles_requested"]
+    if res.info.get("note"):
+        out["note"] = res.info["note"]
     if as_json:
-        click.echo(json.dumps(out))
+        click.echo(json.dumps(out, default=str))
         return
     for k, v in out.items():
+        if k == "note" or (k == "params" and not v):
+            continue
         if isinstance(v, float):
             v = f"{v:.6g}"
         click.echo(f"{k:>22}: {v}")
+    if out.get("note"):
+        click.echo(f"note: {out['note']}")
 
 
 # --------------------------------------------------------------------------- recipes
 @main.command("list")
 @click.option("--json", "as_json", is_flag=True)
 def list_cmd(as_json):
-    """List the registered recipes (ID, paper, what it reproduces, quick/full cost)."""
+    """List the registered recipes (ID, quick/full cost, title, --option keys, --data)."""
     from .recipes import discover
 
     reg = discover()
     if as_json:
         click.echo(json.dumps([{"id": r.id, "aliases": list(r.aliases), "paper": r.paper, "title": r.title,
                                 "quick_cost": r.quick_cost, "full_cost": r.full_cost,
-                                "needs": list(r.needs)} for r in reg.values()]))
+                                "needs": list(r.needs), "reads_data": r.reads_data,
+                                "options": {o.key: o.as_dict() for o in r.options}}
+                               for r in reg.values()]))
         return
     if not reg:
         click.echo("no recipes registered")
@@ -179,6 +211,28 @@ def list_cmd(as_json):
     for r in reg.values():
         alias = f" (alias: {', '.join(r.aliases)})" if r.aliases else ""
         click.echo(f"{r.id.ljust(w)}  {r.quick_cost:>10}  {r.full_cost:>10}  {r.title}{alias}")
+        extra = ([f"--option {', '.join(r.option_keys)}"] if r.options else []) + \
+            (["--data FILE"] if r.reads_data else [])
+        if extra:
+            click.echo(f"{''.ljust(w)}  {'':>10}  {'':>10}    takes {'; '.join(extra)}")
+    click.echo("`pfbench options ID` explains a recipe's options.")
+
+
+@main.command("options")
+@click.argument("recipe_id")
+def options_cmd(recipe_id):
+    """The --option keys a recipe takes (type and help) and whether it reads --data."""
+    from .recipes import resolve
+
+    rec = resolve(recipe_id)
+    click.echo(f"{rec.id}: {rec.title}")
+    if not rec.options:
+        click.echo("  (no --option keys)")
+    w = max((len(o.key) for o in rec.options), default=0)
+    for o in rec.options:
+        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.help}")
+    click.echo("  --data FILE: " + ("a log to run on instead of a simulation" if rec.reads_data
+                                    else "not accepted (the recipe reads no data)"))
 
 
 @main.command()
@@ -191,7 +245,8 @@ def list_cmd(as_json):
 @click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
 @click.option("--data", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Run the recipe on a real log instead of a simulation (where supported).")
-@click.option("--option", "options", multiple=True, metavar="KEY=VALUE", help="Recipe option (repeatable).")
+@click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
+              help="Recipe option (repeatable; `pfbench options ID` lists a recipe's keys).")
 @click.option("--quiet", is_flag=True)
 def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, options, quiet):
     """Run recipe(s): `pfbench reproduce fig5`, `pfbench reproduce multipdf:fig3 --full`."""
@@ -203,7 +258,18 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
         recs = [recipes.resolve(r) for r in recipe_ids]
     else:
         raise click.UsageError("name a recipe (see `pfbench list`) or pass --all")
-    opts = _model_params(options)
+    opts = parse_key_values(options, "--option")
+    # Validate every recipe's options (and --data) before running any of them. With several
+    # recipes each gets the keys it declares; a key that none of them declares is an error.
+    per_recipe = {}
+    for rec in recs:
+        mine = opts if len(recs) == 1 else {k: v for k, v in opts.items() if k in rec.option_keys}
+        per_recipe[rec.id] = rec.check_options(mine)
+    if len(recs) > 1:
+        from .options import check_known
+
+        check_known(opts, {k for r in recs for k in r.option_keys}, "the selected recipes")
+    recipes.check_data(recs, data)
     failed = []
     for rec in recs:
         if run_all and rec.needs and not _needs_met(rec.needs):
@@ -211,8 +277,9 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
             continue
         click.echo(f"== {rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
         try:
-            ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root, data=data,
-                              quiet=quiet, options=opts)
+            ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root,
+                              data=data if (rec.reads_data or len(recs) == 1) else None,
+                              quiet=quiet, options=per_recipe[rec.id])
         except PfbenchError as exc:
             if not run_all:
                 raise

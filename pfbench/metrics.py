@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
+
 
 def _pair(est, truth):
     est = np.asarray(est, dtype=np.float64)
@@ -12,7 +14,7 @@ def _pair(est, truth):
     if truth.ndim == 1:
         truth = truth[:, None]
     if est.shape != truth.shape:
-        raise ValueError(f"estimates {est.shape} and truth {truth.shape} differ in shape")
+        raise InputError(f"estimates {est.shape} and truth {truth.shape} differ in shape")
     return est, truth
 
 

@@ -8,11 +8,35 @@ key or an item without ``=`` is an :class:`~pfbench.errors.InputError` that name
 """
 from __future__ import annotations
 
+import enum
 import json
 import math
 from typing import Iterable
 
 from .errors import InputError
+
+
+class Choice(enum.IntEnum):
+    """A table of named choices with integer codes (methods, resampling schemes): the code is what
+    compiled kernels branch on, the lower-case name is what users type."""
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+    @classmethod
+    def labels(cls) -> tuple[str, ...]:
+        return tuple(m.label for m in cls)
+
+    @classmethod
+    def parse(cls, name):
+        """The member called ``name`` (case-insensitive), or an InputError listing the choices."""
+        if isinstance(name, cls):
+            return name
+        try:
+            return cls[str(name).strip().upper()]
+        except KeyError:
+            raise InputError(f"unknown {cls._what} {name!r}; choose one of {', '.join(cls.labels())}") from None
 
 
 def parse_value(text: str):
@@ -49,3 +73,41 @@ def check_known(options: dict, known: Iterable[str], what: str, flag: str = "--o
     if unknown:
         valid = ", ".join(known) if known else "none"
         raise InputError(f"{flag} {', '.join(unknown)}: not an option of {what} (valid: {valid})")
+
+
+_TYPE_NAMES = {int: "an integer", float: "a number", bool: "true or false", str: "a text"}
+
+
+def typed(value, kind, what: str):
+    """``value`` (as :func:`parse_value` typed it) checked against ``kind`` (int, float, bool, str
+    or None for any), with the parser's rules and no silent rounding: ``2.7`` or ``2.0`` is not an
+    int, ``true`` is not a number, an int is a valid float (``3`` -> 3.0), and any scalar is a
+    valid str (``30`` -> ``"30"``). A str ``value`` for an int, float or bool is first typed by
+    :func:`parse_value` (``"3"`` -> 3, as on the command line), so text typed through the Python
+    API agrees with the CLI. Anything else is an InputError starting with ``what``
+    (e.g. ``"--option runs=2.7"``). Another callable ``kind`` converts, its TypeError/ValueError
+    becoming the InputError."""
+    if kind is None:
+        return value
+    if isinstance(value, str) and kind in (int, float, bool):
+        value = parse_value(value.strip())
+    is_bool = isinstance(value, bool)
+    if kind is bool:
+        ok = is_bool
+    elif kind is int:
+        ok = isinstance(value, int) and not is_bool
+    elif kind is float:
+        ok = isinstance(value, (int, float)) and not is_bool
+        value = float(value) if ok else value
+    elif kind is str:
+        ok = value is None or isinstance(value, (str, int, float))
+        value = value if isinstance(value, str) else json.dumps(value)
+    else:
+        try:
+            return kind(value)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{what}: {exc}") from None
+    if not ok:
+        name = _TYPE_NAMES.get(kind, getattr(kind, "__name__", str(kind)))
+        raise InputError(f"{what}: expected {name}, got {json.dumps(value, default=str)}")
+    return value

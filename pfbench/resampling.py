@@ -22,15 +22,15 @@ floating-point operations.
 """
 from __future__ import annotations
 
-import enum
 import math
 
 import numpy as np
 
 from .errors import InputError
+from .options import Choice
 
 
-class Scheme(enum.IntEnum):
+class Scheme(Choice):
     """The one table of resampling schemes; the value is the code the compiled kernels branch on."""
 
     SYSTEMATIC = 0
@@ -39,22 +39,9 @@ class Scheme(enum.IntEnum):
     RESIDUAL = 3
     RESIDUAL_DETERMINISTIC = 4
 
-    @property
-    def label(self) -> str:
-        return self.name.lower()
 
-    @classmethod
-    def parse(cls, name) -> "Scheme":
-        """The scheme called ``name``, or an InputError listing the choices."""
-        if isinstance(name, Scheme):
-            return name
-        try:
-            return cls[str(name).strip().upper()]
-        except KeyError:
-            raise InputError(f"unknown resampling scheme {name!r}; choose one of {', '.join(SCHEMES)}") from None
-
-
-SCHEMES = tuple(s.label for s in Scheme)
+Scheme._what = "resampling scheme"
+SCHEMES = Scheme.labels()
 
 
 def _cdf(weights: np.ndarray) -> np.ndarray:

@@ -108,17 +108,33 @@ def test_epanechnikov_moments():
     assert np.mean(np.sum(e3 ** 2, axis=1)) == pytest.approx(3 / 7, rel=0.02)
 
 
-def test_regularized_preserves_mean_and_inflates_spread_slightly():
+@pytest.mark.parametrize("impl", [resampling.regularized, numba_resampling.regularized],
+                         ids=["numpy", "numba"])
+def test_regularized_jitter_is_epanechnikov_scaled_by_h_and_the_covariance(impl):
+    """x_i* = x_{a_i} + h D eps_i ([Thesis] Alg. 4): recover the jitter d_i = x_i* - x_{a_i} (the
+    ancestors a_i come from replaying the scheme's draws, which come first) and whiten it with the
+    weighted covariance D D^T and h = h_opt. Then z_i = D^-1 d_i / h must be Epanechnikov draws: inside
+    the unit ball, mean 0, E[z z^T] = I / (n_x + 4). With N = 20000 the standard error of each
+    second moment is sqrt(Var(z_a^2) / N) < sqrt(E z_a^4 / N) <= sqrt(1/N) = 0.007, so 0.03 is > 4 se.
+    Catches: a bandwidth that is not h_opt (1e-12 gives z ~ 0; 2 h_opt gives 4x the moments), a
+    jitter not scaled by the covariance factor, a kernel other than Epanechnikov (Gaussian leaves the
+    ball), and a jitter applied to the wrong ancestors."""
+    n, n_x = 20000, 2
     rng = np.random.default_rng(1)
-    x = rng.normal(2.0, 1.0, (5000, 2))
-    w = np.ones(5000)
-    out = resampling.regularized(x, w, np.random.default_rng(2))
-    assert out.shape == x.shape
-    assert np.allclose(out.mean(axis=0), 2.0, atol=0.1)
-    h = resampling.h_opt(5000, 2)
-    # jitter adds h^2 * E[eps^2 per coordinate] = h^2 / (n_x + 4) to the variance
-    expected = x.var(axis=0) * (1 + h ** 2 / 6)
-    assert np.allclose(out.var(axis=0), expected, rtol=0.08)
+    x = rng.normal(2.0, 1.0, (n, n_x)) @ np.array([[1.0, 0.6], [0.0, 0.5]])
+    w = rng.random(n)
+    out = impl(x, w, np.random.default_rng(2))
+    anc = resampling.systematic(w, np.random.default_rng(2))
+    d = out - x[anc]
+    wn = w / w.sum()
+    mean = wn @ x
+    cov = ((x - mean) * wn[:, None]).T @ (x - mean)
+    z = np.linalg.solve(np.linalg.cholesky(cov), d.T).T / resampling.h_opt(n, n_x)
+    # D is a symmetric square root, the Cholesky factor another one: they differ by a rotation, which
+    # leaves the norm and E[z z^T] = I / (n_x + 4) unchanged
+    assert np.max(np.linalg.norm(z, axis=1)) <= 1.0 + 1e-9
+    assert np.all(np.abs(z.mean(axis=0)) < 0.03)
+    np.testing.assert_allclose(z.T @ z / n, np.eye(n_x) / (n_x + 4), atol=0.03)
 
 
 def test_regularized_numba_matches_numpy():
@@ -128,3 +144,17 @@ def test_regularized_numba_matches_numpy():
     a = resampling.regularized(x, w, np.random.default_rng(9))
     b = numba_resampling.regularized(x, w, np.random.default_rng(9))
     assert np.allclose(a, b, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("scheme", ["residual", "residual_deterministic"])
+def test_residual_with_subnormal_total_weight(scheme):
+    """Weights summing to a subnormal number: N / total overflows to inf unless the weights are
+    normalised first (then the numba path returned uninitialised indices). Both backends must give
+    valid, identical indices with the offspring of the normalised weights."""
+    w = np.array([1.0, 3.0, 0.0, 4.0]) * 1e-320          # total 8e-320 < 2.2e-308
+    a = resampling.resample(scheme, w, np.random.default_rng(0))
+    b = numba_resampling.resample(scheme, w, np.random.default_rng(0))
+    assert np.array_equal(a, b)
+    counts = np.bincount(a, minlength=4)
+    # N w = (0.5, 1.5, 0, 2): floors (0, 1, 0, 2), one remainder particle to index 0 or 1
+    assert counts.sum() == 4 and counts[2] == 0 and counts[3] == 2 and counts[0] + counts[1] == 2

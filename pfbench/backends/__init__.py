@@ -1,23 +1,23 @@
-"""Execution backends: ``numpy`` (reference) and ``numba`` (fast path).
+"""How the filters execute: ``numpy`` (the readable reference) and ``numba`` (the fast path).
 
 Both expose ``run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess,
-inc, resampled, degen)``; :func:`pfbench.run_filter` is the public entry point.
+inc, resampled, degen, hist_x=None, hist_w=None)`` for the particle family;
+:func:`pfbench.run_filter` is the public entry point. The marginalized and guided filters have
+their compiled kernels in ``numba_mpf.py`` / ``numba_guided.py``.
 """
 from __future__ import annotations
 
-from ..errors import PfbenchError
-
-NAMES = ("numpy", "numba")
+from ..filters.inputs import BACKENDS as NAMES
+from ..filters.inputs import check_backend
 
 
 def get(name: str):
     """The backend module by name."""
+    check_backend(name)
     if name == "numpy":
         from . import numpy_backend
 
         return numpy_backend
-    if name == "numba":
-        from . import numba_backend
+    from . import numba_backend
 
-        return numba_backend
-    raise PfbenchError(f"unknown backend {name!r}; choose one of {', '.join(NAMES)}")
+    return numba_backend

@@ -159,12 +159,15 @@ def warm_up(model, p, y, u, dtype) -> None:
     x = np.empty((1, 1, n_x), dtype=dtype)
     run_group(model, p, np.random.default_rng(0), y[:1], u[:1], x, 0, 0, 1.0, np.empty((1, 1, n_x)),
               np.empty((1, 1, n_x)), np.empty((1, 1)), np.empty((1, 1)), np.zeros((1, 1), np.bool_),
-              np.zeros((1, 1), np.bool_))
+              np.zeros((1, 1), np.bool_), np.empty((1, 0, 1, n_x), dtype), np.empty((1, 0, 1)))
     _WARM.add(key)
 
 
 def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess, inc, resampled,
-              degen) -> None:
+              degen, hist_x=None, hist_w=None) -> None:
     """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL)."""
+    if hist_x is None:
+        G, _, n_x = x.shape
+        hist_x, hist_w = np.empty((G, 0, 1, n_x), x.dtype), np.empty((G, 0, 1))
     kernel_module(model).run_group(p, rng, y, u, x, int(model.n_noise), int(method), int(scheme),
-                                   float(ess_threshold), est, var, ess, inc, resampled, degen)
+                                   float(ess_threshold), est, var, ess, inc, resampled, degen, hist_x, hist_w)

@@ -36,10 +36,12 @@ def _log_likelihood(y, x, u, t, p):  # pragma: no cover - bound per model
 
 @_njit(nogil=True)
 def run_group(p, rng, y, u, x, n_noise, method, scheme, ess_threshold, est, var, ess, inc, resampled,
-              degen):
+              degen, hist_x, hist_w):
     """Run a group of G independent filters over all steps (one random stream, documented order).
 
     x: (G, n, n_x) particle buffer (its dtype is the particle dtype); outputs (G, M, ...).
+    hist_x (G, M, n, n_x), hist_w (G, M, n): the weighted particles of every step (before
+    resampling) when their second dimension is M; pass (G, 0, ...) arrays to store nothing.
     method: a :class:`~pfbench.filters.methods.Method` code of the particle family (MultiPDF runs
     bootstrap sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold:
     a particle count.
@@ -87,6 +89,11 @@ def run_group(p, rng, y, u, x, n_noise, method, scheme, ess_threshold, est, var,
                     v = ll[i]
                     ll[i] = v - lam[i] if v == v and v != _np.inf else -_np.inf
             m, total, deg = _weigh(lwg, ll, wu, cdf)
+            if hist_x.shape[1] > 0:
+                for i in range(n):
+                    hist_w[g, t, i] = wu[i] / total
+                    for a in range(n_x):
+                        hist_x[g, t, i, a] = xg[i, a]
             degen[g, t] = deg
             inc[g, t] = (-_np.inf if deg else m + _np.log(total)) + first
             e = _moments(xg, wu, total, est[g, t], var[g, t])

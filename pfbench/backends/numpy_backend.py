@@ -63,8 +63,10 @@ def normalised_log_weights(wu: np.ndarray, total: float) -> np.ndarray:
 
 
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
-              est, var, ess, inc, resampled, degen) -> None:
-    """NumPy twin of the numba ``run_group``; fills the output arrays in place."""
+              est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None) -> None:
+    """NumPy twin of the numba ``run_group``; fills the output arrays in place (``hist_x``/``hist_w``:
+    the weighted particles of every step, when given with M rows)."""
+    store = hist_x is not None and hist_x.shape[1] > 0
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
     resample = resampling.get(resampling.Scheme(scheme))
@@ -96,6 +98,9 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             if method == Method.ASIR:
                 ll = _clean(ll - lam)
             wu, _, m, total, deg = weigh(lw[g], ll)
+            if store:
+                hist_x[g, t] = xg
+                hist_w[g, t] = wu / total
             degen[g, t] = deg
             inc[g, t] = (-np.inf if deg else m + np.log(total)) + first
             mean = (wu @ xg) / total

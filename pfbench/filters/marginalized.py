@@ -1,175 +1,95 @@
-"""Marginalized (Rao-Blackwellized) particle filter, MPF ([MultiPDF] §5, its refs. [19, 21]).
+"""Marginalized (Rao-Blackwellized) particle filter, MPF ([Schon2005] Alg. 1; [MultiPDF] §5), and
+the Kalman filter it reduces to when every state is linear-Gaussian.
 
-The state splits into a nonlinear part x^n (particles) and a part x^l that enters the
-transition linearly (a Kalman filter per particle)::
+The filter runs on *any* model that declares a conditionally linear-Gaussian substructure
+(``linear_states`` and the ``cl_*`` members of :class:`~pfbench.models.base.StateSpaceModel`)::
 
-    x^n_t = f^n(x^n_{t-1}, u_t) + A^n x^l_{t-1} + w^n,    w^n ~ N(0, Q^n)
-    x^l_t = f^l(x^n_{t-1}, u_t) + A^l x^l_{t-1} + w^l,    w^l ~ N(0, Q^l)
-    y_t   = h(x^n_t, x^l_t) + e,                          e ~ N(0, diag R)
+    x^n_t = f^n(x^n_{t-1}) + A^n(x^n_{t-1}) x^l_{t-1} + w^n
+    x^l_t = f^l(x^n_{t-1}) + A^l(x^n_{t-1}) x^l_{t-1} + w^l,    (w^n, w^l) ~ N(0, Q)
+    y_t   = h(x^n_t, x^l_t) + e,                                e ~ N(0, R)
 
-Algorithm (Schön, Gustafsson & Nordlund 2005, Alg. 1; [MultiPDF] ref. [19]) per step t:
+x^n is carried by particles, x^l by one Kalman filter per particle. It knows no model by name.
 
-1. sample x^n_t ~ N(f^n + A^n m, N),  N = A^n P A^n' + Q^n  (per particle, Cholesky of N);
-2. Kalman time update that also uses x^n_t as a measurement of x^l_{t-1}:
-   m <- A^l (m + P A^n' N^-1 (x^n_t - f^n - A^n m)) + f^l,
-   P <- A^l (P - P A^n' N^-1 A^n P) A^l' + Q^l;
-3. weight w ∝ p(y_t | x^n_t, Y_{t-1}) = N(y_t; h(x^n_t, m), H P H' + R) and Kalman
-   measurement update, with h linearised in x^l at the predicted mean (the paper's MPF uses
-   an EKF for the linear states, §1): exact when h is linear in x^l. The outputs are processed
-   one at a time (R is diagonal), which equals the batch update for a fixed linearisation;
-4. estimate = weighted mean of (x^n, m); systematic resampling every step (as the bootstrap
-   filter of [MultiPDF] Alg. 1).
+Algorithm, per step t ([Schon2005] Alg. 1, in the order of our time convention):
 
-When every state is linear in the transition (Ob2, Ob3 and the linear-Gaussian model) there is
-no x^n: every "particle" carries the same Kalman/EKF recursion, so the MPF is exactly the
-(E)KF and its result does not depend on N_p ([MultiPDF] §5: "the performance of MPF is
-independent of the number of particles") -- we run one copy. On a linear-Gaussian model the
-MPF therefore equals the exact Kalman filter.
+1. sample x^n_t ~ N(f^n + A^n m, N), N = A^n P A^n' + Q^n (per particle, Cholesky L of N);
+2. condition x^l_{t-1} on x^n_t (the "measurement" x^n_t - f^n = A^n x^l_{t-1} + w^n):
+   m <- m + P A^n' N^-1 (x^n_t - f^n - A^n m), P <- P - P A^n' N^-1 A^n P; then the time update
+   m <- f^l + A^l m, P <- A^l P A^l' + Q^l. A cross-covariance Q^ln between w^l and w^n is
+   supported by decorrelating it: with T = Q^ln (Q^n)^-1, f^l gains T (x^n_t - f^n), A^l becomes
+   A^l - T A^n and Q^l becomes Q^l - T Q^nl;
+3. apply the model's optional constraints to x^n_t (:meth:`cl_constrain`; after step 2, which used
+   the unconstrained draw);
+4. weight w ∝ p(y_t | x^n_t, Y_{t-1}) = N(y_t; h, C P C' + R) and Kalman measurement update, with
+   h and C = dh/dx^l from the model's ``cl_observation`` at the predicted mean of x^l: exact when
+   y is linear in x^l, an EKF linearisation otherwise (the MPF of [MultiPDF] §5 uses an EKF for
+   the linear states). The outputs are processed one scalar at a time; a full R is first whitened
+   with its Cholesky factor L (y <- L^-1 y once, h <- L^-1 h, C <- L^-1 C per step), which equals
+   the batch update for a fixed linearisation;
+5. estimates: the full-state mean and covariance of the mixture sum_i w_i delta(x^n_i) N(m_i, P_i);
+   resample every step (as the bootstrap filter of [MultiPDF] Alg. 1), with any
+   :class:`~pfbench.resampling.Scheme`.
 
-Structures are defined here for ``ob2``, ``ob3``, ``ob5`` (x^n = (x1, x3, x4), x^l = x2: the
-velocity enters every equation linearly and no measurement) and ``linear_gaussian``
-(diagonal R, no inputs). Ob5: the §4 constraints are applied to the sampled x^n after the
-Kalman update used the unconstrained draw (they are inactive near the operating point); x2 is
-not constrained.
+When the model has no nonlinear states (d_n = 0; Ob2, Ob3, the linear-Gaussian model) every
+particle would carry the same Kalman/EKF recursion, so one copy runs and ``n_particles`` is
+ignored ([MultiPDF] §5: "the performance of MPF is independent of the number of particles"); the
+result then equals the exact Kalman filter on a linear-Gaussian model. :func:`run_kalman`
+(``method="kalman"``) runs that same recursion and refuses models with nonlinear states.
 
-Backends: the step is written once as vectorised NumPy helpers (``register_jitable``); the
-``numpy`` driver runs them as Python and resamples with :mod:`pfbench.resampling`, the
-``numba`` driver compiles them and resamples with :mod:`pfbench.backends.numba_resampling`.
-Random numbers are drawn from one ``numpy.random.Generator`` in this order: x^n prior
-(n, d_n) standard normals; per step the x^n noise (n, d_n) then the resampling draws. Both
-backends draw the same numbers and give the same estimates.
+Backends and random numbers. The step math is written once, as vectorised ``register_jitable``
+helpers (:func:`kalman_predict`, :func:`kalman_update`, :func:`mixture_moments`); the ``numpy``
+driver runs them as Python with :func:`pfbench.backends.numpy_backend.weigh` and
+:mod:`pfbench.resampling`, the ``numba`` driver (:mod:`pfbench.backends.numba_mpf`) compiles them
+with the model's functions and uses :mod:`pfbench.backends.numba_weights` and
+:func:`pfbench.backends.numba_resampling.resample_into`. Both draw from one
+``numpy.random.default_rng(seed)`` in this order: the prior ``initial(rng, N_p, p)`` (only when
+d_n > 0; its x^n columns are kept), then per step the x^n noise ``standard_normal((N_p, d_n))``
+followed by the resampling draws. With d_n = 0 nothing is drawn. Both backends draw the same
+numbers and agree to rounding (tested <= 1e-9).
 """
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
-from ..backends.cache import njit
 from numba.extending import register_jitable
 
-from ..backends.numba_resampling import cumsum_into, resample_into
+from .. import resampling as _resampling
+from ..backends.numpy_backend import _clean, weigh
+from ..errors import InputError, UnsupportedError
+from ..models.base import StateSpaceModel
 from ..resampling import Scheme
-from ..errors import PfbenchError
-from ..models.ob2 import ob2_h
-from ..models.ob3 import ob3_h
-from ..models.ob5 import ob5_coil_factor, ob5_fem, ob5_h
+from .inputs import check_backend, check_dtype, check_inputs, seed_sequence
 from .result import FilterResult
 
-KIND_OB2, KIND_OB3, KIND_LINEAR, KIND_OB5 = 0, 1, 2, 3
-_LOG2PI = math.log(2.0 * math.pi)
+_LOG2PI = 1.8378770664093453
+_CL_FUNCTIONS = ("cl_transition", "cl_observation", "cl_noise", "cl_prior")
 
 
-# --------------------------------------------------------------------------- structure
+# --------------------------------------------------------------------------- the step math
 @register_jitable
-def _fn(kind, xn, u, fpar):
-    """Nonlinear-part drift f^n(x^n, u) (n, d_n) without the A^n x^l term."""
-    out = xn.copy()
-    if kind == 3:  # Ob5: xn = (x1, x3, x4); fpar = (ts, xd, m, g)
-        ts = fpar[0]
-        xd = fpar[1]
-        u1 = min(max(u[0], 0.00498), 1.0)
-        u2 = min(max(u[1], 0.00498), 1.0)
-        x1 = xn[:, 0]
-        out[:, 1] = xn[:, 1] + ob5_coil_factor(x1, ts) * (2.5165 * u1 + 0.0243 - xn[:, 1])
-        out[:, 2] = xn[:, 2] + ob5_coil_factor(xd - x1, ts) * (2.5165 * u2 + 0.0243 - xn[:, 2])
-    return out
-
-
-@register_jitable
-def _fl(kind, xn, u, fpar, n, d_l):
-    """Linear-part drift f^l(x^n, u) (n, d_l)."""
-    out = np.zeros((n, d_l))
-    if kind == 3:
-        ts = fpar[0]
-        xd = fpar[1]
-        m = fpar[2]
-        g = fpar[3]
-        x1 = xn[:, 0]
-        f1 = ob5_fem(xn[:, 1], x1)
-        f2 = ob5_fem(xn[:, 2], xd - x1)
-        out[:, 0] = ts * (g - f1 / m + f2 / m)
-    return out
-
-
-@register_jitable
-def _clip(kind, xn, fpar):
-    if kind == 3:
-        xn[:, 0] = np.minimum(np.maximum(xn[:, 0], 0.0), fpar[1])
-        xn[:, 1] = np.minimum(np.maximum(xn[:, 1], 0.03884), 2.38)
-        xn[:, 2] = np.minimum(np.maximum(xn[:, 2], 0.03884), 2.38)
-
-
-@register_jitable
-def _h(kind, xn, xl, ipar, mat):
-    """Noise-free outputs h(x^n, x^l) (n, n_y)."""
-    if kind == 0:
-        return ob2_h(xl)
-    if kind == 1:
-        npair = ipar[1]
-        return ob3_h(xl, ipar[0], mat, ipar[2:2 + npair], ipar[2 + npair:2 + 2 * npair])
-    if kind == 2:
-        n = xl.shape[0]
-        out = np.zeros((n, mat.shape[0]))
-        for k in range(mat.shape[0]):
-            for a in range(mat.shape[1]):
-                out[:, k] += mat[k, a] * xl[:, a]
-        return out
-    full = np.empty((xn.shape[0], 4))
-    full[:, 0] = xn[:, 0]
-    full[:, 1] = xl[:, 0]
-    full[:, 2] = xn[:, 1]
-    full[:, 3] = xn[:, 2]
-    return ob5_h(full)
-
-
-@register_jitable
-def _jac(kind, xn, xl, ipar, mat, n_y):
-    """dh/dx^l at (x^n, x^l): (n, n_y, d_l); central differences for Ob2/Ob3."""
-    n = xl.shape[0]
-    d_l = xl.shape[1]
-    H = np.zeros((n, n_y, d_l))
-    if kind == 2:
-        for k in range(n_y):
-            for a in range(d_l):
-                H[:, k, a] = mat[k, a]
-    elif kind == 0 or kind == 1:
-        for a in range(d_l):
-            eps = 1e-6 * np.maximum(1.0, np.abs(xl[:, a]))
-            xp = xl.copy()
-            xm = xl.copy()
-            xp[:, a] += eps
-            xm[:, a] -= eps
-            hp = _h(kind, xn, xp, ipar, mat)
-            hm = _h(kind, xn, xm, ipar, mat)
-            for k in range(n_y):
-                H[:, k, a] = (hp[:, k] - hm[:, k]) / (2.0 * eps)
-    return H
-
-
-# --------------------------------------------------------------------------- one step
-@register_jitable
-def _sandwich(A, P, Q):
-    """Per particle: A P and A P A^T + Q, for P (n, d_in, d_in), A (d_out, d_in), Q (d_out, d_out)."""
+def sandwich(A, P, Q):
+    """Per particle: A P and A P A' + Q, for A (n, d_out, d_in), P (n, d_in, d_in), Q (d_out, d_out)."""
     n = P.shape[0]
-    d_out, d_in = A.shape
+    d_out = A.shape[1]
+    d_in = A.shape[2]
     AP = np.zeros((n, d_out, d_in))
     for a in range(d_out):
         for b in range(d_in):
             for c in range(d_in):
-                AP[:, a, b] += A[a, c] * P[:, c, b]
+                AP[:, a, b] += A[:, a, c] * P[:, c, b]
     S = np.zeros((n, d_out, d_out))
     for a in range(d_out):
         for b in range(d_out):
             S[:, a, b] += Q[a, b]
             for c in range(d_in):
-                S[:, a, b] += AP[:, a, c] * A[b, c]
+                S[:, a, b] += AP[:, a, c] * A[:, b, c]
     return AP, S
 
 
 @register_jitable
-def _chol(S):
-    """Lower Cholesky factors of a batch of SPD matrices S (n, d, d)."""
+def cholesky_batch(S):
+    """Lower Cholesky factors of a batch of SPD matrices S (n, d, d) (pivots floored at 1e-300)."""
     d = S.shape[1]
     L = np.zeros_like(S)
     for j in range(d):
@@ -186,27 +106,31 @@ def _chol(S):
 
 
 @register_jitable
-def _predict(kind, xn, m, P, z, u, An, Al, Qn, Ql, fpar):
-    """Steps 1-2: returns (x^n_t, m_pred, P_pred)."""
+def kalman_predict(fn, An, fl, Al, m, P, z, Qn, Ql, T, corr):
+    """Steps 1-2 of the module docstring ([Schon2005] Alg. 1): sample x^n_t and predict x^l_t.
+
+    ``fn, An, fl, Al`` from the model's ``cl_transition`` at x^n_{t-1}; ``m`` (n, d_l), ``P``
+    (n, d_l, d_l): x^l_{t-1} | Y_{t-1}; ``z`` (n, d_n) standard normals; ``Qn`` (d_n, d_n); ``Ql``
+    (d_l, d_l) the (decorrelated) x^l noise covariance; ``T`` (d_l, d_n) = Q^ln (Q^n)^-1, used
+    when ``corr``. Returns (x^n_t (n, d_n), m_pred (n, d_l), P_pred (n, d_l, d_l)).
+    """
     n = m.shape[0]
     d_l = m.shape[1]
-    d_n = xn.shape[1]
-    fl = _fl(kind, xn, u, fpar, n, d_l)
+    d_n = fn.shape[1]
     mm = m.copy()
     Pm = P.copy()
-    xnew = xn.copy()
+    xnew = np.zeros((n, d_n))
     if d_n > 0:
-        fnv = _fn(kind, xn, u, fpar)
-        AP, N = _sandwich(An, P, Qn)
-        L = _chol(N)
-        for a in range(d_n):
-            acc = fnv[:, a].copy()
+        AP, N = sandwich(An, P, Qn)
+        L = cholesky_batch(N)
+        for a in range(d_n):  # x^n_t = f^n + A^n m + L z
+            acc = fn[:, a].copy()
             for c in range(d_l):
-                acc += An[a, c] * m[:, c]
+                acc += An[:, a, c] * m[:, c]
             for b in range(a + 1):
                 acc += L[:, a, b] * z[:, b]
             xnew[:, a] = acc
-        # w = N^-1 e = L^-T z (back substitution), V = L^-1 AP (forward substitution)
+        # N^-1 (x^n_t - f^n - A^n m) = L^-T z (back substitution); V = L^-1 A^n P (forward)
         w = np.zeros((n, d_n))
         for a in range(d_n - 1, -1, -1):
             acc = z[:, a].copy()
@@ -227,29 +151,54 @@ def _predict(kind, xn, m, P, z, u, An, Al, Qn, Ql, fpar):
             for c in range(d_l):
                 for a in range(d_n):
                     Pm[:, b, c] -= V[:, a, b] * V[:, a, c]
-    m_pred = fl.copy()
+    A = Al
+    f = fl
+    if corr:  # decorrelated noise: f^l + T (x^n_t - f^n), A^l - T A^n
+        A = Al.copy()
+        f = fl.copy()
+        for a in range(d_l):
+            for c in range(d_n):
+                f[:, a] += T[a, c] * (xnew[:, c] - fn[:, c])
+                for b in range(d_l):
+                    A[:, a, b] -= T[a, c] * An[:, c, b]
+    m_pred = f.copy()
     for a in range(d_l):
         for b in range(d_l):
-            m_pred[:, a] += Al[a, b] * mm[:, b]
-    _, P_pred = _sandwich(Al, Pm, Ql)
+            m_pred[:, a] += A[:, a, b] * mm[:, b]
+    _, P_pred = sandwich(A, Pm, Ql)
     return xnew, m_pred, P_pred
 
 
 @register_jitable
-def _update(kind, xn, m_pred, P_pred, y, R, ipar, mat):
-    """Step 3: log p(y_t | x^n_t, Y_{t-1}) per particle and the Kalman measurement update."""
+def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet):
+    """Step 4: log p(y_t | x^n_t, Y_{t-1}) per particle (n,) and the measurement update (m, P).
+
+    ``h`` (n, n_y), ``C`` (n, n_y, d_l): the model's ``cl_observation`` at ``m_pred``; ``y``
+    (n_y,) the (whitened, if ``whiten``) measurement; ``W`` (n_y, n_y) = L^-1 (lower triangular)
+    with L L' = R, used when ``whiten``; ``rvar`` (n_y,) the variances of the (whitened) outputs;
+    ``logdet`` = log det L. Scalar outputs are processed one at a time, residuals taken about the
+    fixed linearisation point ``m_pred``.
+    """
     n = m_pred.shape[0]
     d_l = m_pred.shape[1]
     n_y = y.shape[0]
-    h0 = _h(kind, xn, m_pred, ipar, mat)
-    H = _jac(kind, xn, m_pred, ipar, mat, n_y)
+    h0 = h
+    H = C
+    if whiten:
+        h0 = np.zeros((n, n_y))
+        H = np.zeros((n, n_y, d_l))
+        for k in range(n_y):
+            for j in range(k + 1):
+                h0[:, k] += W[k, j] * h[:, j]
+                for a in range(d_l):
+                    H[:, k, a] += W[k, j] * C[:, j, a]
     m = m_pred.copy()
     P = P_pred.copy()
     ll = np.zeros(n)
     for k in range(n_y):
         r = y[k] - h0[:, k]
         PH = np.zeros((n, d_l))
-        s = np.full(n, R[k])
+        s = np.full(n, rvar[k])
         for a in range(d_l):
             r -= H[:, k, a] * (m[:, a] - m_pred[:, a])
             for b in range(d_l):
@@ -262,202 +211,302 @@ def _update(kind, xn, m_pred, P_pred, y, R, ipar, mat):
             m[:, a] += K * r
             for b in range(d_l):
                 P[:, a, b] -= K * PH[:, b]
+    if whiten:
+        ll -= logdet
     return ll, m, P
 
 
 @register_jitable
-def _weigh(ll, wu):
-    """wu = exp(ll - max) (NaN -> 0); returns (max, total)."""
-    mx = -np.inf
-    for i in range(ll.shape[0]):
-        v = ll[i]
-        if not (v == v) or v == np.inf:
-            ll[i] = -np.inf
-        elif v > mx:
-            mx = v
-    if not (mx > -np.inf):  # degenerate: keep uniform weights
-        for i in range(ll.shape[0]):
-            wu[i] = 1.0
-        return -np.inf, float(ll.shape[0])
-    for i in range(ll.shape[0]):
-        wu[i] = np.exp(ll[i] - mx)
-    total = 0.0
-    for i in range(ll.shape[0]):
-        total += wu[i]
-    return mx, total
-
-
-@register_jitable
-def _moments(wu, total, xn, m, P, idx_n, idx_l, est, var):
-    d_n = xn.shape[1]
-    d_l = m.shape[1]
+def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, est, cov):
+    """Full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x, n_x) of the MPF posterior
+    sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, given the weighted means of x^n
+    (``mean_n``) and of the m_i (``mean_l``): cov = sum_i w_i (d_i d_i' + [0 0; 0 P_i])."""
+    n = wu.shape[0]
+    d_n = idx_n.shape[0]
+    d_l = idx_l.shape[0]
+    n_x = d_n + d_l
+    dev = np.empty((n, n_x))
     for a in range(d_n):
-        mu = np.sum(wu * xn[:, a]) / total
-        est[idx_n[a]] = mu
-        var[idx_n[a]] = np.sum(wu * (xn[:, a] - mu) ** 2) / total
+        est[idx_n[a]] = mean_n[a]
+        dev[:, idx_n[a]] = xn[:, a] - mean_n[a]
     for a in range(d_l):
-        mu = np.sum(wu * m[:, a]) / total
-        est[idx_l[a]] = mu
-        var[idx_l[a]] = np.sum(wu * (P[:, a, a] + (m[:, a] - mu) ** 2)) / total
+        est[idx_l[a]] = mean_l[a]
+        dev[:, idx_l[a]] = m[:, a] - mean_l[a]
+    for i in range(n_x):
+        for j in range(i + 1):
+            c = np.sum(wu * dev[:, i] * dev[:, j]) / total
+            cov[i, j] = c
+            cov[j, i] = c
+    for a in range(d_l):
+        for b in range(a + 1):
+            c = np.sum(wu * (0.5 * (P[:, a, b] + P[:, b, a]))) / total
+            cov[idx_l[a], idx_l[b]] += c
+            if a != b:
+                cov[idx_l[b], idx_l[a]] += c
 
 
-@register_jitable
-def _init(rng, n, kind, mn0, sn0, m0, P0, fpar):
-    d_n = mn0.shape[0]
-    d_l = m0.shape[0]
-    xn = np.zeros((n, d_n))
-    if d_n > 0:
-        z = rng.standard_normal((n, d_n))
-        for a in range(d_n):
-            xn[:, a] = mn0[a] + sn0[a] * z[:, a]
-        _clip(kind, xn, fpar)
-    m = np.zeros((n, d_l))
-    P = np.zeros((n, d_l, d_l))
-    for i in range(n):
-        m[i] = m0
-        P[i] = P0
-    return xn, m, P
+# --------------------------------------------------------------------------- structure
+def _declares_structure(model) -> bool:
+    if getattr(model, "linear_states", None) is None:
+        return False
+    cls = type(model)
+    return all(getattr(cls, f) is not getattr(StateSpaceModel, f) for f in _CL_FUNCTIONS)
+
+
+def _psd(a: np.ndarray, what: str, definite: bool) -> None:
+    if a.size == 0:
+        return
+    if not np.allclose(a, a.T, rtol=1e-10, atol=1e-12 * max(1.0, float(np.abs(a).max()))):
+        raise InputError(f"{what} must be symmetric")
+    if definite:
+        try:
+            np.linalg.cholesky(0.5 * (a + a.T))
+        except np.linalg.LinAlgError:
+            raise InputError(f"{what} must be positive definite") from None
+    else:
+        w = np.linalg.eigvalsh(0.5 * (a + a.T))
+        if w.min() < -1e-12 * float(np.abs(w).max()):
+            raise InputError(f"{what} must be positive semi-definite")
+
+
+def structure(model, y, u) -> dict:
+    """The validated linear-Gaussian split of ``model`` (UnsupportedError if it declares none).
+
+    Returns the index arrays ``idx_n``/``idx_l``, the noise blocks (``Qn``, decorrelated ``Ql``,
+    ``T``, ``corr``), the measurement whitening (``W``, ``rvar``, ``whiten``, ``logdet``, the
+    whitened measurements ``yw``) and the x^l prior (``m0``, ``P0``). The model's functions are
+    called once on two particles to check the shapes they return (numba would not).
+    """
+    name = model.name or type(model).__name__
+    if not _declares_structure(model):
+        raise UnsupportedError(
+            f"model {name!r} declares no conditionally linear-Gaussian substructure, which method "
+            "'mpf'/'kalman' needs: set `linear_states` (indices of the states x^l that enter the "
+            "transition and measurement linearly) and implement cl_transition, cl_observation, "
+            "cl_noise and cl_prior (see pfbench.models.base.StateSpaceModel)")
+    n_x, n_y = int(model.n_x), int(model.n_y)
+    idx_l = np.asarray(model.linear_states, dtype=np.int64).reshape(-1)
+    if len(set(idx_l.tolist())) != idx_l.size or idx_l.size == 0 or idx_l.min() < 0 or idx_l.max() >= n_x:
+        raise InputError(f"{name}: linear_states must be distinct state indices in 0..{n_x - 1}, "
+                         f"at least one, got {model.linear_states!r}")
+    idx_n = np.array([i for i in range(n_x) if i not in set(idx_l.tolist())], dtype=np.int64)
+    d_n, d_l = idx_n.size, idx_l.size
+    Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in model.cl_noise())
+    if Q.shape != (n_x, n_x) or R.shape != (n_y, n_y):
+        raise InputError(f"{name}.cl_noise must return Q ({n_x}, {n_x}) and R ({n_y}, {n_y}), "
+                         f"got {Q.shape} and {R.shape}")
+    _psd(Q, f"{name}: Q", False)
+    _psd(R, f"{name}: R", True)
+    Qn, Ql, Qnl = Q[np.ix_(idx_n, idx_n)], Q[np.ix_(idx_l, idx_l)], Q[np.ix_(idx_n, idx_l)]
+    _psd(Qn, f"{name}: the noise covariance Q^n of the nonlinear states", True)
+    corr = bool(np.any(Qnl != 0.0))
+    T = np.zeros((d_l, d_n))
+    if corr:  # w^l = T w^n + wbar, T = Q^ln (Q^n)^-1, Cov wbar = Q^l - T Q^nl
+        T = np.linalg.solve(Qn, Qnl).T
+        Ql = Ql - T @ Qnl
+    m0, P0 = model.cl_prior()
+    m0 = np.asarray(m0, dtype=np.float64).reshape(-1)
+    P0 = np.atleast_2d(np.asarray(P0, dtype=np.float64))
+    if m0.shape != (d_l,) or P0.shape != (d_l, d_l):
+        raise InputError(f"{name}.cl_prior must return m0 ({d_l},) and P0 ({d_l}, {d_l}), "
+                         f"got {m0.shape} and {P0.shape}")
+    _psd(P0, f"{name}: the prior covariance P0 of x^l", False)
+    whiten = bool(np.count_nonzero(R - np.diag(np.diag(R))))
+    if whiten:
+        L = np.linalg.cholesky(R)
+        W = np.tril(np.linalg.inv(L))  # L^-1 is lower triangular; tril drops rounding noise
+        rvar, logdet = np.ones(n_y), float(np.sum(np.log(np.diag(L))))
+        yw = np.ascontiguousarray(y @ W.T)
+    else:
+        W, rvar, logdet, yw = np.eye(n_y), np.diag(R).copy(), 0.0, y
+    _check_shapes(model, name, u, idx_n, idx_l, m0)
+    c = np.ascontiguousarray
+    return dict(idx_n=idx_n, idx_l=idx_l, d_n=d_n, d_l=d_l, Qn=c(Qn), Ql=c(Ql), T=c(T), corr=corr,
+                W=c(W), rvar=c(rvar), whiten=whiten, logdet=logdet, yw=c(yw), m0=c(m0), P0=c(P0))
+
+
+def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
+    """Call the model's structure functions once on two particles and check what they return."""
+    p = model.params()
+    n, d_n, d_l, n_y = 2, idx_n.size, idx_l.size, int(model.n_y)
+
+    def check(fn, arr, shape):
+        a = np.asarray(arr)
+        if a.shape != shape:
+            raise InputError(f"{name}.{fn} returned an array of shape {a.shape}, expected {shape} "
+                             f"(n = {n} particles, d_n = {d_n}, d_l = {d_l}, n_y = {n_y})")
+
+    if d_n:
+        x = np.asarray(model.initial(np.random.default_rng(0), n, p))
+        check("initial", x, (n, model.n_x))
+        xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
+    else:
+        xn = np.zeros((n, 0))
+    out = model.cl_transition(xn, u[0], 0, p)
+    shapes = ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l))
+    for f, arr, shape in zip(("f^n", "A^n", "f^l", "A^l"), out, shapes):
+        check(f"cl_transition ({f})", arr, shape)
+    check("cl_constrain", model.cl_constrain(xn.copy(), p), (n, d_n))
+    h, C = model.cl_observation(xn, np.tile(m0, (n, 1)), u[0], 0, p)
+    check("cl_observation (h)", h, (n, n_y))
+    check("cl_observation (C)", C, (n, n_y, d_l))
 
 
 # --------------------------------------------------------------------------- drivers
-def _run_numpy(rng, n, kind, y, u, fpar, ipar, mat, An, Al, Qn, Ql, R, mn0, sn0, m0, P0,
-               idx_n, idx_l, scheme, est, var, inc):
-    from .. import resampling
-
-    resample = resampling.get(scheme)
-    xn, m, P = _init(rng, n, kind, mn0, sn0, m0, P0, fpar)
-    d_n = xn.shape[1]
-    wu = np.empty(n)
-    for t in range(y.shape[0]):
-        z = rng.standard_normal((n, d_n)) if d_n > 0 else np.zeros((n, 0))
-        xn, m_pred, P_pred = _predict(kind, xn, m, P, z, u[t], An, Al, Qn, Ql, fpar)
-        _clip(kind, xn, fpar)
-        ll, m, P = _update(kind, xn, m_pred, P_pred, y[t], R, ipar, mat)
-        mx, total = _weigh(ll, wu)
-        inc[t] = mx + np.log(total) - np.log(n)
-        _moments(wu, total, xn, m, P, idx_n, idx_l, est[t], var[t])
-        if d_n > 0:
+def _run_numpy(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
+    """The NumPy reference driver (vectorised over particles; one Python loop over steps)."""
+    cls = type(model)
+    cl_transition, cl_observation, cl_constrain = cls.cl_transition, cls.cl_observation, cls.cl_constrain
+    resample = _resampling.get(Scheme(scheme))
+    idx_n, idx_l, d_n = s["idx_n"], s["idx_l"], s["d_n"]
+    yw = s["yw"]
+    if d_n:
+        xn = np.ascontiguousarray(np.asarray(model.initial(rng, n, p), dtype=np.float64)[:, idx_n])
+    else:
+        xn = np.zeros((n, 0))
+    m = np.tile(s["m0"], (n, 1))
+    P = np.tile(s["P0"], (n, 1, 1))
+    lw = np.full(n, -np.log(n))
+    for t in range(yw.shape[0]):
+        z = rng.standard_normal((n, d_n)) if d_n else np.zeros((n, 0))
+        fn, An, fl, Al = cl_transition(xn, u[t], t, p)
+        xn, m_pred, P_pred = kalman_predict(fn, An, fl, Al, m, P, z, s["Qn"], s["Ql"], s["T"], s["corr"])
+        xn = cl_constrain(xn, p)
+        h, C = cl_observation(xn, m_pred, u[t], t, p)
+        ll, m, P = kalman_update(h, C, m_pred, P_pred, yw[t], s["W"], s["rvar"], s["whiten"], s["logdet"])
+        wu, _, mx, total, deg = weigh(lw, _clean(ll))
+        degen[t] = deg
+        inc[t] = -np.inf if deg else mx + np.log(total)
+        wn = wu / total
+        ess[t] = 1.0 / np.cumsum(wn * wn)[-1]
+        mixture_moments(wu, total, (wu @ xn) / total, (wu @ m) / total, xn, m, P, idx_n, idx_l,
+                        est[t], cov[t])
+        if d_n:
             idx = resample(wu, rng)
             xn, m, P = xn[idx], m[idx], P[idx]
 
 
-@njit(nogil=True)
-def _run_numba(rng, n, kind, y, u, fpar, ipar, mat, An, Al, Qn, Ql, R, mn0, sn0, m0, P0,
-               idx_n, idx_l, scheme, est, var, inc):
-    xn, m, P = _init(rng, n, kind, mn0, sn0, m0, P0, fpar)
-    d_n = xn.shape[1]
-    wu = np.empty(n)
-    cdf = np.empty(n)
-    idx = np.empty(n, np.int64)
-    for t in range(y.shape[0]):
-        if d_n > 0:
-            z = rng.standard_normal((n, d_n))
-        else:
-            z = np.zeros((n, 0))
-        xn, m_pred, P_pred = _predict(kind, xn, m, P, z, u[t], An, Al, Qn, Ql, fpar)
-        _clip(kind, xn, fpar)
-        ll, m, P = _update(kind, xn, m_pred, P_pred, y[t], R, ipar, mat)
-        mx, total = _weigh(ll, wu)
-        inc[t] = mx + np.log(total) - np.log(n)
-        _moments(wu, total, xn, m, P, idx_n, idx_l, est[t], var[t])
-        if d_n > 0:
-            cumsum_into(wu, cdf)
-            resample_into(scheme, wu, cdf, rng, idx)
-            xn2 = np.empty_like(xn)
-            m2 = np.empty_like(m)
-            P2 = np.empty_like(P)
-            for i in range(n):
-                xn2[i] = xn[idx[i]]
-                m2[i] = m[idx[i]]
-                P2[i] = P[idx[i]]
-            xn, m, P = xn2, m2, P2
+_WARM: set = set()
 
 
-# --------------------------------------------------------------------------- structures
-def structure(model) -> dict:
-    """The MPF split of a supported model (see the module docstring)."""
-    f = np.float64
-    name = model.name
-    if name == "ob2":
-        d = 5
-        return dict(kind=KIND_OB2, idx_n=np.zeros(0, np.int64), idx_l=np.arange(d),
-                    An=np.zeros((0, d)), Al=model.a * np.eye(d), Qn=np.zeros((0, 0)),
-                    Ql=model.q * np.eye(d), R=np.asarray(model.r, f), mn0=np.zeros(0),
-                    sn0=np.zeros(0), m0=np.zeros(d), P0=np.zeros((d, d)), fpar=np.zeros(1),
-                    ipar=np.zeros(1, np.int64), mat=np.zeros((1, 1)))
-    if name == "ob3":
-        d = 4
-        ipar = np.concatenate([[model.version, len(model.pi)], model.pi, model.pj]).astype(np.int64)
-        return dict(kind=KIND_OB3, idx_n=np.zeros(0, np.int64), idx_l=np.arange(d),
-                    An=np.zeros((0, d)), Al=model.a * np.eye(d), Qn=np.zeros((0, 0)),
-                    Ql=model.q * np.eye(d), R=np.full(model.n_y, model.r), mn0=np.zeros(0),
-                    sn0=np.zeros(0), m0=np.zeros(d), P0=np.eye(d) / 3.0,  # x^(0) ~ U[-1, 1]
-                    fpar=np.zeros(1), ipar=ipar, mat=np.ascontiguousarray(model.mu, f))
-    if name == "linear_gaussian":
-        if model.n_u:
-            raise PfbenchError("MPF on linear_gaussian supports models without inputs only")
-        if np.count_nonzero(model.R - np.diag(np.diag(model.R))):
-            raise PfbenchError("MPF needs a diagonal measurement covariance R")
-        d = model.n_x
-        return dict(kind=KIND_LINEAR, idx_n=np.zeros(0, np.int64), idx_l=np.arange(d),
-                    An=np.zeros((0, d)), Al=np.array(model.A, f), Qn=np.zeros((0, 0)),
-                    Ql=np.array(model.Q, f), R=np.diag(model.R).astype(f), mn0=np.zeros(0),
-                    sn0=np.zeros(0), m0=np.array(model.x0, f), P0=np.array(model.P0, f),
-                    fpar=np.zeros(1), ipar=np.zeros(1, np.int64),
-                    mat=np.ascontiguousarray(model.C, f))
-    if name == "ob5":
-        q, s0, xe = model.q_std, model.p0_std, model.x_eq
-        return dict(kind=KIND_OB5, idx_n=np.array([0, 2, 3]), idx_l=np.array([1]),
-                    An=np.array([[model.ts], [0.0], [0.0]]), Al=np.eye(1),
-                    Qn=np.diag(q[[0, 2, 3]] ** 2), Ql=np.array([[q[1] ** 2]]),
-                    R=model.r_std ** 2, mn0=xe[[0, 2, 3]].copy(), sn0=s0[[0, 2, 3]].copy(),
-                    m0=xe[[1]].copy(), P0=np.array([[s0[1] ** 2]]),
-                    fpar=np.array([model.ts, model.xd, model.m, model.g]),
-                    ipar=np.zeros(1, np.int64), mat=np.zeros((1, 1)))
-    raise PfbenchError(f"no marginalized-PF structure for model {name!r} "
-                       "(supported: ob2, ob3, ob5, linear_gaussian)")
+def _numba_module(model):
+    from ..backends import numba_backend
+
+    numba_backend.register_family("mpf", "numba_mpf.py",
+                                  ("initial", "cl_transition", "cl_observation", "cl_constrain"))
+    return numba_backend.kernel_module(model, "mpf")
 
 
-def run_mpf(model, y, u=None, *, n_particles: int = 100, backend: str = "numba", seed=0,
-            resampling: str = "systematic") -> FilterResult:
-    """Run the marginalized PF; returns a :class:`~pfbench.filters.api.FilterResult`.
+def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
+    run = _numba_module(model).run
+    run(p, rng, s["yw"], u, n, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
+        s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen)
 
-    ``n_particles`` is ignored (one Kalman/EKF copy) for models without nonlinear states.
-    ``seed``: int or ``numpy.random.SeedSequence``.
-    """
-    from .inputs import check_inputs as _check_inputs
 
-    if backend not in ("numpy", "numba"):
-        raise PfbenchError(f"unknown backend {backend!r}; choose numpy or numba")
-    if resampling not in ("systematic", "stratified", "multinomial"):
-        raise PfbenchError("MPF resampling must be systematic, stratified or multinomial")
-    s = structure(model)
-    y, u = _check_inputs(model, y, u)
-    n = int(n_particles) if len(s["idx_n"]) else 1
-    if n < 1:
-        raise PfbenchError(f"n_particles must be >= 1, got {n_particles}")
-    M = y.shape[0]
-    est = np.zeros((M, model.n_x))
-    var = np.zeros((M, model.n_x))
-    inc = np.zeros(M)
-    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-    rng = np.random.default_rng(ss)
-    c = np.ascontiguousarray
-    args = (rng, n, int(s["kind"]), y, u, c(s["fpar"], np.float64), c(s["ipar"], np.int64),
-            c(s["mat"], np.float64), c(s["An"], np.float64).reshape(len(s["idx_n"]), len(s["idx_l"])),
-            c(s["Al"], np.float64), c(s["Qn"], np.float64).reshape(len(s["idx_n"]), len(s["idx_n"])),
-            c(s["Ql"], np.float64), c(s["R"], np.float64), c(s["mn0"], np.float64),
-            c(s["sn0"], np.float64), c(s["m0"], np.float64), c(s["P0"], np.float64),
-            c(s["idx_n"], np.int64), c(s["idx_l"], np.int64))
-    t0 = time.perf_counter()
+def _warm_up(model, p, n, s, u, scheme) -> None:
+    """Compile (or load) the numba kernel outside the timed region, on one step and a throwaway
+    generator (the caller's stream is not touched)."""
+    import numba
+
+    key = (type(model), str(numba.typeof(p)))
+    if key in _WARM:
+        return
+    n_x = model.n_x
+    s1 = dict(s, yw=s["yw"][:1])
+    _run_numba(model, p, np.random.default_rng(0), min(n, 2), s1, u[:1], scheme, np.empty((1, n_x)),
+               np.empty((1, n_x, n_x)), np.empty(1), np.empty(1), np.zeros(1, np.bool_))
+    _WARM.add(key)
+
+
+def _filter(model, y, u, *, n, backend, resampling, seed):
+    """Run the recursion with ``n`` particles; returns (structure, arrays, elapsed_s)."""
+    check_backend(backend)
+    scheme = int(Scheme.parse(resampling))
+    y, u = check_inputs(model, y, u)
+    s = structure(model, y, u)
+    if s["d_n"] == 0:
+        n = 1
+    rng = np.random.default_rng(seed_sequence(seed))
+    M, n_x = y.shape[0], model.n_x
+    out = dict(est=np.zeros((M, n_x)), cov=np.zeros((M, n_x, n_x)), ess=np.zeros(M), inc=np.zeros(M),
+               degen=np.zeros(M, np.bool_))
+    p = model.params()
     if backend == "numba":
-        _run_numba(*args, int(Scheme.parse(resampling)), est, var, inc)
-    else:
-        _run_numpy(*args, resampling, est, var, inc)
-    elapsed = time.perf_counter() - t0
-    return FilterResult(estimates=est, sub_estimates=est[None].copy(), variances=var,
-                        loglik=float(inc.sum()), loglik_increments=inc, ess=np.full(M, float(n)),
-                        sub_ess=np.full((1, M), float(n)), n_resampled=M if n > 1 else 0,
-                        degenerate=~np.isfinite(inc), elapsed_s=elapsed, method="mpf",
-                        backend=backend, n_particles=n, n_filters=1,
-                        info={"structure": model.name, "n_nonlinear": int(len(s["idx_n"]))})
+        _warm_up(model, p, n, s, u, scheme)
+    run = _run_numba if backend == "numba" else _run_numpy
+    t0 = time.perf_counter()
+    run(model, p, rng, n, s, u, scheme, out["est"], out["cov"], out["ess"], out["inc"], out["degen"])
+    return s, n, out, time.perf_counter() - t0
+
+
+def run_mpf(model, y, u=None, *, n_particles: int = 100, resampling: str = "systematic",
+            backend: str = "numba", seed=0, dtype: str = "float64",
+            ess_threshold=None) -> FilterResult:
+    """Marginalized particle filter ([Schon2005] Alg. 1; see the module docstring).
+
+    Parameters
+    ----------
+    model : a model declaring ``linear_states`` and the ``cl_*`` members (else UnsupportedError).
+    y, u : measurements (M, n_y) and inputs (M, n_u).
+    n_particles : N_p particles for x^n; ignored (one copy, ``n_particles`` 1 in the result, with
+        ``info["n_particles_requested"]`` and ``info["note"]``) when every state is linear.
+    resampling : a :class:`~pfbench.resampling.Scheme` name; the filter resamples every step.
+    backend : ``numpy`` or ``numba``; seed : int or ``numpy.random.SeedSequence``.
+    dtype, ess_threshold : accepted for :func:`pfbench.run_filter`; only ``float64`` and ``None``.
+
+    Returns
+    -------
+    FilterResult
+        method ``"mpf"``; estimates, variances and covariances in full-state order; ``ess`` the
+        N_eff of the MPF weights; ``loglik_increments`` estimates of log p(y_t | y_1:t-1).
+    """
+    check_dtype(dtype)
+    if dtype != "float64":
+        raise InputError("method 'mpf' runs in float64 only")
+    if ess_threshold is not None:
+        raise InputError("method 'mpf' resamples at every step; ess_threshold does not apply")
+    if isinstance(n_particles, bool) or int(n_particles) != n_particles or int(n_particles) < 1:
+        raise InputError(f"n_particles must be an integer >= 1, got {n_particles!r}")
+    s, n, out, elapsed = _filter(model, y, u, n=int(n_particles), backend=backend,
+                                 resampling=resampling, seed=seed)
+    info = {"resampling": Scheme.parse(resampling).label, "n_nonlinear": int(s["d_n"]),
+            "linear_states": [int(i) for i in s["idx_l"]], "noise_cross_covariance": s["corr"],
+            "whitened_measurement": s["whiten"]}
+    if s["d_n"] == 0:
+        info["n_particles_requested"] = int(n_particles)
+        info["note"] = ("every state is linear-Gaussian (d_n = 0): all particles would carry the "
+                        "same Kalman/EKF recursion, so one copy ran and N_p is ignored ([MultiPDF] "
+                        "§5: the performance of MPF is independent of the number of particles)")
+    return _result(out, elapsed, method="mpf", backend=backend, n_particles=n,
+                   n_resampled=out["inc"].shape[0] if s["d_n"] else 0, info=info)
+
+
+def run_kalman(model, y, u=None, *, backend: str = "numba") -> FilterResult:
+    """Kalman filter on a model whose every state is in its linear substructure (d_n = 0): the MPF
+    recursion with one copy, i.e. the exact KF when the measurement is linear in the state and an
+    EKF (linearised at the predicted mean) otherwise. UnsupportedError if the model has nonlinear
+    states (use method 'mpf'). Returns a FilterResult with method ``"kalman"``, ``n_particles`` 0,
+    ``ess`` NaN and the covariances filled."""
+    y, u = check_inputs(model, y, u)
+    if _declares_structure(model):
+        d_n = model.n_x - len(tuple(model.linear_states))
+        if d_n > 0:
+            raise UnsupportedError(
+                f"method 'kalman' needs every state of model {model.name or type(model).__name__!r} "
+                f"in its linear substructure, but {d_n} state(s) are nonlinear "
+                f"(linear_states = {tuple(model.linear_states)}); use method 'mpf'")
+    s, _, out, elapsed = _filter(model, y, u, n=1, backend=backend, resampling="systematic", seed=0)
+    out["ess"][:] = np.nan
+    info = {"linear_states": [int(i) for i in s["idx_l"]], "whitened_measurement": s["whiten"]}
+    return _result(out, elapsed, method="kalman", backend=backend, n_particles=0, n_resampled=0,
+                   info=info)
+
+
+def _result(out, elapsed, *, method, backend, n_particles, n_resampled, info) -> FilterResult:
+    cov = out["cov"]
+    inc = out["inc"]
+    return FilterResult(
+        estimates=out["est"], variances=np.diagonal(cov, axis1=1, axis2=2).copy(),
+        loglik=float(inc.sum()), loglik_increments=inc, ess=out["ess"], n_resampled=int(n_resampled),
+        degenerate=out["degen"], elapsed_s=elapsed, method=method, backend=backend, dtype="float64",
+        n_particles=int(n_particles), n_filters=1, covariances=cov, info=info)

@@ -6,12 +6,10 @@ compiles ``IntEnum`` members as integer constants.
 """
 from __future__ import annotations
 
-import enum
-
-from ..errors import InputError
+from ..options import Choice
 
 
-class Method(enum.IntEnum):
+class Method(Choice):
     """Filtering methods of :func:`pfbench.run_filter`.
 
     ========== ============================================================================
@@ -36,28 +34,17 @@ class Method(enum.IntEnum):
     KALMAN = 7
 
     @property
-    def label(self) -> str:
-        return self.name.lower()
-
-    @property
     def family(self) -> str:
         """``particle`` (the bootstrap kernel), ``mpf``, ``guided`` or ``kalman``."""
         return _FAMILY.get(self, "particle")
 
-    @classmethod
-    def parse(cls, name) -> "Method":
-        """The method called ``name`` (case-insensitive), or an InputError listing the choices."""
-        if isinstance(name, Method):
-            return name
-        try:
-            return cls[str(name).strip().upper()]
-        except KeyError:
-            raise InputError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}") from None
+
+Method._what = "method"
 
 
 _FAMILY = {Method.MPF: "mpf", Method.GUIDED: "guided", Method.KALMAN: "kalman"}
 
 #: method names in table order
-METHODS = tuple(m.label for m in Method)
+METHODS = Method.labels()
 #: the methods the bootstrap-family particle kernel runs
 PARTICLE_METHODS = tuple(m.label for m in Method if m.family == "particle")

@@ -61,7 +61,7 @@ def split_particles(n_particles: int, n_filters: int) -> int:
 def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: int = 1,
                  resampling="systematic", ess_threshold=None, backend: str = "numba",
                  dtype: str = "float64", seed=0, common_random_numbers: bool = False,
-                 n_threads: int | None = None) -> FilterResult:
+                 n_threads: int | None = None, store_particles: bool = False) -> FilterResult:
     """Run a bootstrap-family filter on validated ``y``/``u`` (see :func:`pfbench.run_filter`)."""
     method = Method.parse(method)
     scheme = Scheme.parse(resampling)
@@ -78,7 +78,7 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     rngs = streams(seed, n_filters, common_random_numbers)
     out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
                               resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
-                              n_threads=n_threads)
+                              n_threads=n_threads, store_particles=store_particles)
     est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
@@ -94,11 +94,14 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
         loglik_increments=increments, ess=ess.mean(axis=0), n_resampled=int(out["resampled"].sum()),
         degenerate=out["degen"].any(axis=0), elapsed_s=elapsed, method=method.label, backend=backend,
         dtype=dtype, n_particles=n_per * n_filters, n_filters=n_filters, sub_estimates=est,
-        sub_variances=var, sub_ess=ess, info=info)
+        sub_variances=var, sub_ess=ess, info=info,
+        extras={"resampled": out["resampled"], **({"particles": out["particles"], "weights": out["weights"]}
+                                                  if store_particles else {})})
 
 
 def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampling,
-               ess_threshold: float, backend: str, dtype: str = "float64", n_threads: int | None = None):
+               ess_threshold: float, backend: str, dtype: str = "float64", n_threads: int | None = None,
+               store_particles: bool = False):
     """Run ``n_filters`` filters of ``n_per`` particles on validated, contiguous ``y``/``u``.
 
     The filters are split evenly over the random streams ``rngs`` (one group per stream, see
@@ -106,7 +109,9 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     1 to stay sequential). Returns ``(arrays, elapsed_s)`` with per-filter arrays ``est``/``var``
     (N_f, M, n_x), ``ess``/``inc``/``resampled``/``degen`` (N_f, M). ``method`` is a particle-family
     :class:`Method` (MultiPDF sub-filters run as bootstrap), ``resampling`` a :class:`Scheme` and
-    ``ess_threshold`` a particle count. Used by :func:`run_particle` and by the sweep runner.
+    ``ess_threshold`` a particle count. ``store_particles`` adds ``particles`` (N_f, M, n, n_x) and
+    ``weights`` (N_f, M, n), the normalised weighted particles of every step before resampling.
+    Used by :func:`run_particle` and by the sweep runner.
     """
     be = backends.get(backend)
     M, n_x = y.shape[0], model.n_x
@@ -118,7 +123,9 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     out = {"est": np.empty((n_filters, M, n_x)), "var": np.empty((n_filters, M, n_x)),
            "ess": np.empty((n_filters, M)), "inc": np.empty((n_filters, M)),
            "resampled": np.zeros((n_filters, M), dtype=np.bool_),
-           "degen": np.zeros((n_filters, M), dtype=np.bool_)}
+           "degen": np.zeros((n_filters, M), dtype=np.bool_),
+           "particles": np.empty((n_filters, M if store_particles else 0, n_per, n_x), dtype=ptype),
+           "weights": np.empty((n_filters, M if store_particles else 0, n_per))}
     method = Method.parse(method)
     if method.family != "particle":
         raise InputError(f"run_groups runs the particle methods, not {method.label!r}")
@@ -130,7 +137,8 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     def job(gi: int):
         sl = slice(gi * per_group, (gi + 1) * per_group)
         be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, ess_threshold, out["est"][sl],
-                     out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl])
+                     out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl],
+                     out["particles"][sl], out["weights"][sl])
 
     t0 = time.perf_counter()
     workers = min(n_groups, n_threads or _cores())

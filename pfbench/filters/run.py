@@ -21,7 +21,8 @@ def _count(value, name: str, minimum: int = 1) -> int:
 def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int | None = None,
                n_filters: int = 1, resampling: str = "systematic", ess_threshold: float | None = None,
                backend: str = "numba", dtype: str = "float64", seed=0,
-               common_random_numbers: bool = False, n_threads: int | None = None) -> FilterResult:
+               common_random_numbers: bool = False, n_threads: int | None = None,
+               store_particles: bool = False) -> FilterResult:
     """Filter measurements ``y`` (M, n_y) with inputs ``u`` (M, n_u); returns a :class:`FilterResult`.
 
     Parameters
@@ -42,6 +43,8 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     seed : int or ``numpy.random.SeedSequence``.
     common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
     n_threads : threads for parallel MultiPDF sub-filters (numba, CRN off); default: all cores.
+    store_particles : particle family only: keep the weighted particles of every step (before
+        resampling) in ``extras["particles"]`` (N_f, M, N, n_x) and ``extras["weights"]`` (N_f, M, N).
     """
     m = Method.parse(method)
     if n_particles is None:
@@ -57,18 +60,20 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
                             resampling=resampling, ess_threshold=ess_threshold, backend=backend,
                             dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
-                            n_threads=n_threads)
+                            n_threads=n_threads, store_particles=store_particles)
     if n_filters != 1:
         raise InputError(f"n_filters={n_filters} needs method='multipdf'")
+    if store_particles:
+        raise InputError(f"store_particles is available for the particle methods, not {m.label!r}")
     if m.family == "mpf":
         from .marginalized import run_mpf
 
         return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
-                       seed=seed)
+                       seed=seed, dtype=dtype, ess_threshold=ess_threshold)
     if m.family == "kalman":
         from .marginalized import run_kalman
 
-        return run_kalman(model, y, u)
+        return run_kalman(model, y, u, backend=backend)
     from .guided import run_guided
 
     return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,

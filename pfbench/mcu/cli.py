@@ -6,6 +6,9 @@ import math
 
 import click
 
+from ..filters.methods import PARTICLE_METHODS
+from ..options import parse_key_values
+from ..resampling import SCHEMES
 
 
 @click.group()
@@ -33,30 +36,18 @@ def _positive_float(name, allow_zero=False):
     return cb
 
 
-def _params(items) -> dict:
-    out = {}
-    for item in items:
-        if "=" not in item:
-            raise click.BadParameter(f"expected KEY=VALUE, got {item!r}", param_hint="'--param'")
-        k, v = item.split("=", 1)
-        try:
-            out[k.strip()] = float(v) if any(c in v for c in ".eE") else int(v)
-        except ValueError:
-            out[k.strip()] = v
-    return out
-
-
 @mcu.command()
-@click.option("--model", "model_name", default="ob1", show_default=True, help="Registered model.")
+@click.option("--model", "model_name", default="ob1", show_default=True,
+              help="Registered model, optionally with a variant (ob3:v4).")
 @click.option("--steps", type=int, default=1000, show_default=True, callback=_positive_int("steps"))
 @click.option("--particles", type=int, default=1000, show_default=True, callback=_positive_int("particles"))
 @click.option("--precision", type=click.Choice(["float", "double"]), default="float", show_default=True,
               help="float: FPU build (paper D(O)); double: soft-float build (paper D(S)).")
-@click.option("--method", type=click.Choice(["bootstrap", "sir", "sis", "multipdf", "asir"]),
-              default="bootstrap", show_default=True)
+@click.option("--method", type=click.Choice(PARTICLE_METHODS), default="bootstrap", show_default=True,
+              help="A particle method (the operation counts cover the bootstrap-family kernel).")
 @click.option("--filters", type=int, default=1, show_default=True, callback=_positive_int("filters"),
               help="MultiPDF sub-filters N_f.")
-@click.option("--resampling", default="systematic", show_default=True)
+@click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
 @click.option("--clock-mhz", type=float, default=168.0, show_default=True, callback=_positive_float("clock-mhz"))
 @click.option("--cycles", "cycles_file", type=click.Path(dir_okay=False), default=None,
               help="Cycle table JSON (default: built-in Cortex-M4F table).")
@@ -64,22 +55,25 @@ def _params(items) -> dict:
               callback=_positive_float("board-power-w", allow_zero=True), help="Board power (Table 3).")
 @click.option("--no-calibration", is_flag=True, help="Raw instruction-table cycles, no Table-2 efficiency.")
 @click.option("--no-history", is_flag=True, help="Memory check without the per-step history arrays.")
-@click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help="Model parameter (repeatable).")
+@click.option("--param", "params", multiple=True, metavar="KEY=VALUE",
+              help="Model parameter (repeatable; JSON-typed, as `pfbench run --param`).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def estimate(model_name, steps, particles, precision, method, filters, resampling, clock_mhz, cycles_file,
              board_power_w, no_calibration, no_history, params, as_json):
     """Predict STM32F4 run time, energy and RAM of a particle filter."""
+    from .. import models
     from .costmodel import predict
 
+    name, model_params = models.parse_spec(model_name, parse_key_values(params, "--param"))
     if method != "multipdf" and filters != 1:
         raise click.BadParameter(f"--filters {filters} needs --method multipdf", param_hint="'--filters'")
     if filters > particles:
         raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
                                  param_hint="'--filters'")
-    r = predict(model_name, steps, particles, precision, method=method, n_filters=filters,
+    r = predict(name, steps, particles, precision, method=method, n_filters=filters,
                 clock_mhz=clock_mhz, cycles=cycles_file, board_power_w=board_power_w,
                 calibrated=not no_calibration, resampling=resampling, history=not no_history,
-                model_params=_params(params))
+                model_params=model_params)
     if as_json:
         click.echo(json.dumps(r, indent=2, default=float))
         return

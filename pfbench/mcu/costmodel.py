@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
-from ..errors import PfbenchError
+from ..errors import InputError
 from . import counting
 from .cycles import PRECISIONS, CycleTable, cycles_of, cycles_to_ms, load_table, primitive_cycles
 
@@ -48,18 +48,18 @@ def _table(cycles) -> CycleTable:
 
 def _check_precision(precision: str) -> None:
     if precision not in PRECISIONS:
-        raise PfbenchError(f"unknown precision {precision!r}; choose float or double")
+        raise InputError(f"unknown precision {precision!r}; choose float or double")
 
 
 def checked_number(value, what: str, unit: str = "", allow_zero: bool = False) -> float:
-    """``value`` as a finite float > 0 (>= 0 with ``allow_zero``), else a one-line PfbenchError."""
+    """``value`` as a finite float > 0 (>= 0 with ``allow_zero``), else a one-line InputError."""
     unit_s = f" {unit}" if unit else ""
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise PfbenchError(f"{what} must be a number{' of ' + unit if unit else ''}, got {value!r}") from None
+        raise InputError(f"{what} must be a number{' of ' + unit if unit else ''}, got {value!r}") from None
     if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise PfbenchError(f"{what} must be {'>=' if allow_zero else '>'} 0{unit_s}, got {value}")
+        raise InputError(f"{what} must be {'>=' if allow_zero else '>'} 0{unit_s}, got {value}")
     return v
 
 
@@ -171,7 +171,7 @@ def check_memory(model, n_particles: int, n_steps: int, precision: str, history:
         extra = (f" + {mem['history_bytes'] / 1024:.1f} kB history for {n_steps} steps" if history else "")
         hint = (f"the largest N_p that fits is {mem['max_particles']}" if mem["max_particles"] > 0 else
                 "the per-step history alone does not fit: reduce --steps or use --no-history")
-        raise PfbenchError(
+        raise InputError(
             f"{n_particles} particles at {precision} need {mem['bytes'] / 1024:.1f} kB "
             f"({mem['particle_bytes'] / 1024:.1f} kB particle arrays{extra}) but the STM32F407 has 192 kB "
             f"({mem['usable_bytes'] / 1024:.0f} kB usable after a {RAM_RESERVE_BYTES // 1024} kB reserve); {hint}")
@@ -193,7 +193,7 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
     clock_mhz : core clock (default 168, the STM32F407 of [Embedded] Table 1).
     cycles : path of a cycle table JSON (default: the built-in one) or a :class:`CycleTable`.
     calibrated : apply the Table-2 efficiency factor of ``precision`` (see :func:`calibrate`).
-    memory : refuse (PfbenchError) configurations whose arrays exceed the 192 kB RAM.
+    memory : refuse (InputError) configurations whose arrays exceed the 192 kB RAM.
 
     Returns
     -------

@@ -44,7 +44,7 @@ from collections import Counter
 
 import numpy as np
 
-from ..errors import PfbenchError
+from ..errors import InputError, UnsupportedError
 
 #: every operation class the counter produces (the cycle tables must cost each one)
 OPS = ("add", "mul", "div", "div_scalar", "cmp", "sqrt", "exp", "log", "cos", "pow", "cvt", "int",
@@ -502,19 +502,19 @@ def _validate(model, n_steps, n_particles, method, n_filters, resampling):
     from ..resampling import Scheme
 
     if Method.parse(method).family != "particle":
-        raise PfbenchError(f"operation counts cover the particle methods {', '.join(PARTICLE_METHODS)}; "
-                           f"got {method!r}")
+        raise UnsupportedError(f"operation counts cover the particle methods {', '.join(PARTICLE_METHODS)}; "
+                               f"got {method!r}")
     Scheme.parse(resampling)
     if int(n_steps) < 1:
-        raise PfbenchError(f"n_steps must be >= 1, got {n_steps}")
+        raise InputError(f"n_steps must be >= 1, got {n_steps}")
     if int(n_particles) < 1:
-        raise PfbenchError(f"n_particles must be >= 1, got {n_particles}")
+        raise InputError(f"n_particles must be >= 1, got {n_particles}")
     if int(n_filters) < 1:
-        raise PfbenchError(f"n_filters must be >= 1, got {n_filters}")
+        raise InputError(f"n_filters must be >= 1, got {n_filters}")
     if method != "multipdf" and int(n_filters) != 1:
-        raise PfbenchError(f"n_filters={n_filters} needs method='multipdf'")
+        raise InputError(f"n_filters={n_filters} needs method='multipdf'")
     if int(n_filters) > int(n_particles):
-        raise PfbenchError(f"n_filters ({n_filters}) cannot exceed n_particles ({n_particles})")
+        raise InputError(f"n_filters ({n_filters}) cannot exceed n_particles ({n_particles})")
 
 
 def count_run(model, n_steps: int, n_particles: int, *, method: str = "bootstrap",

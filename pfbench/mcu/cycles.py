@@ -12,7 +12,7 @@ libgcc/newlib soft-float call costs for ``double``). A user table has the same l
 (``{"float": {...}, "double": {...}}`` with the cycle dicts at the top level is accepted too;
 ``generators`` defaults to the built-in ones). Every operation the counter produces
 (:data:`pfbench.mcu.counting.OPS`, with ``uniform``/``normal`` expanded through the
-generators) must have a cycle count, else :class:`~pfbench.errors.PfbenchError` names it.
+generators) must have a cycle count, else :class:`~pfbench.errors.DataError` names it.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import PfbenchError
+from ..errors import DataError, InputError
 from .counting import OPS
 
 DATA_DIR = Path(__file__).with_name("data")
@@ -43,9 +43,9 @@ class CycleTable:
 
     def check_precision(self, precision: str) -> None:
         if precision not in PRECISIONS:
-            raise PfbenchError(f"unknown precision {precision!r}; choose float or double")
+            raise InputError(f"unknown precision {precision!r}; choose float or double")
         if precision not in self.cycles:
-            raise PfbenchError(f"cycles table {self.path or self.name}: no {precision!r} section")
+            raise DataError(f"cycles table {self.path or self.name}: no {precision!r} section")
 
     def cost(self, precision: str, op: str, _depth: int = 0) -> float:
         """Cycles of one ``op`` at ``precision``; generated draws expand through their recipe."""
@@ -55,8 +55,8 @@ class CycleTable:
             return float(tab[op])
         if op in self.generators and _depth < 5:
             return sum(n * self.cost(precision, sub, _depth + 1) for sub, n in self.generators[op].items())
-        raise PfbenchError(f"cycles table {self.path or self.name}: precision {precision!r} has no "
-                           f"cycle count for operation {op!r}")
+        raise DataError(f"cycles table {self.path or self.name}: precision {precision!r} has no "
+                        f"cycle count for operation {op!r}")
 
     def expand(self, precision: str, op: str) -> dict[str, float]:
         """Primitive operations (and multiplicities) one ``op`` stands for, e.g. a Box-Muller normal."""
@@ -80,29 +80,29 @@ def load_table(path: str | Path | None = None) -> CycleTable:
     try:
         raw = json.loads(p.read_text())
     except FileNotFoundError:
-        raise PfbenchError(f"cycles file {str(p)!r} not found") from None
+        raise DataError(f"cycles file {str(p)!r} not found") from None
     except (OSError, json.JSONDecodeError) as exc:
-        raise PfbenchError(f"cycles file {str(p)!r} is not valid JSON: {exc}") from None
+        raise DataError(f"cycles file {str(p)!r} is not valid JSON: {exc}") from None
     if not isinstance(raw, dict):
-        raise PfbenchError(f"cycles file {str(p)!r}: expected a JSON object")
+        raise DataError(f"cycles file {str(p)!r}: expected a JSON object")
     if "precisions" in raw:
         precs = raw["precisions"]
         if not isinstance(precs, dict):
-            raise PfbenchError(f"cycles file {str(p)!r}: 'precisions' must be an object")
+            raise DataError(f"cycles file {str(p)!r}: 'precisions' must be an object")
         cycles = {k: (v.get("cycles", v) if isinstance(v, dict) else v) for k, v in precs.items()}
     else:
         cycles = {k: raw[k] for k in PRECISIONS if k in raw}
     if not cycles:
-        raise PfbenchError(f"cycles file {str(p)!r}: no 'float' or 'double' cycle counts")
+        raise DataError(f"cycles file {str(p)!r}: no 'float' or 'double' cycle counts")
     for prec, tab in cycles.items():
         if prec not in PRECISIONS:
-            raise PfbenchError(f"cycles file {str(p)!r}: unknown precision {prec!r} (use float, double)")
+            raise DataError(f"cycles file {str(p)!r}: unknown precision {prec!r} (use float, double)")
         if not isinstance(tab, dict):
-            raise PfbenchError(f"cycles file {str(p)!r}: {prec!r} cycles must be an object")
+            raise DataError(f"cycles file {str(p)!r}: {prec!r} cycles must be an object")
         for op, v in tab.items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 or v != v:
-                raise PfbenchError(f"cycles file {str(p)!r}: {prec} cycles of {op!r} must be a "
-                                   f"non-negative number, got {v!r}")
+                raise DataError(f"cycles file {str(p)!r}: {prec} cycles of {op!r} must be a "
+                                f"non-negative number, got {v!r}")
     generators = raw.get("generators")
     if generators is None:
         generators = (json.loads(DEFAULT_TABLE.read_text())["generators"] if p != DEFAULT_TABLE else {})
@@ -134,5 +134,5 @@ def primitive_cycles(counts: dict[str, int], table: CycleTable, precision: str) 
 def cycles_to_ms(cycles: float, clock_mhz: float) -> float:
     """Milliseconds for ``cycles`` at ``clock_mhz`` (cycles / (MHz * 1e3))."""
     if not clock_mhz > 0:
-        raise PfbenchError(f"clock must be > 0 MHz, got {clock_mhz}")
+        raise InputError(f"clock must be > 0 MHz, got {clock_mhz}")
     return float(cycles) / (float(clock_mhz) * 1e3)

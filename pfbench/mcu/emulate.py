@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import PfbenchError
+from ..errors import InputError, PfbenchError
 from . import toolchain
 
 TIMING_PATH = Path(__file__).resolve().parent / "data" / "cortex_m4_timing.json"
@@ -305,7 +305,7 @@ def run(precision: str, steps: int, particles: int, seed: int = 1,
     from unicorn import arm_const as A
 
     if steps < 1 or particles < 1 or particles > 1000:
-        raise PfbenchError("emulated steps must be >= 1 and particles in 1..1000 (PF_NMAX)")
+        raise InputError("emulated steps must be >= 1 and particles in 1..1000 (PF_NMAX)")
     prog = program or Program(toolchain.build(precision))
     sym = prog.symbols
     image = bytearray(prog.build.bin.read_bytes())
@@ -427,7 +427,7 @@ def fit(runs: list[RunResult]) -> dict:
     ``residual_rel``: the largest relative residual of the nominal-cycle fit."""
     X = np.array([[1.0, r.steps, r.steps * r.particles] for r in runs])
     if np.linalg.matrix_rank(X) < 3:
-        raise PfbenchError("need at least three (M, N) configurations with different M and N")
+        raise InputError("need at least three (M, N) configurations with different M and N")
 
     def lsq(y):
         coef, *_ = np.linalg.lstsq(X, np.asarray(y, float), rcond=None)
@@ -477,9 +477,9 @@ def emulate(precision: str = "float", steps: int = 1000, particles: int = 1000,
     worst), ``instructions``/``cycles`` per particle-step and per step, class counts and the
     breakdowns per particle-step, the analytic model and Table 2 beside it."""
     if precision not in toolchain.BUILDS:
-        raise PfbenchError(f"precision must be 'float' or 'double', got {precision!r}")
+        raise InputError(f"precision must be 'float' or 'double', got {precision!r}")
     if steps < 1 or particles < 1:
-        raise PfbenchError("--steps and --particles must be positive")
+        raise InputError("--steps and --particles must be positive")
     clock = float(clock_mhz or timing_table()["clock_mhz"])
     prog = Program(toolchain.build(precision, opt=opt))
     configs = tuple(configs or DEFAULT_CONFIGS[precision])

@@ -8,7 +8,7 @@ import json
 
 import click
 
-from ..errors import PfbenchError
+from ..errors import InputError, PfbenchError
 
 
 def _parse_configs(text: str | None):
@@ -20,8 +20,8 @@ def _parse_configs(text: str | None):
             m, n = part.lower().split("x")
             out.append((int(m), int(n)))
         except ValueError as exc:
-            raise PfbenchError(f"--configs: expected MxN[,MxN...] (e.g. 10x50,20x50,10x100), "
-                               f"got {part!r}") from exc
+            raise InputError(f"--configs: expected MxN[,MxN...] (e.g. 10x50,20x50,10x100), "
+                             f"got {part!r}") from exc
     return out
 
 

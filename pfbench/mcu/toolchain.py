@@ -22,7 +22,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import PfbenchError
+from ..errors import InputError, PfbenchError
 
 C_DIR = Path(__file__).resolve().parent / "c"
 SOURCES = ("pf_ob1.c", "startup.c")
@@ -106,7 +106,7 @@ def _run(cmd: list[str], cwd: Path, stdout=None) -> None:
 def build(precision: str = "float", opt: str | None = None, force: bool = False) -> Build:
     """Build (or fetch from the cache) the D(S) (``double``) or D(O) (``float``) image."""
     if precision not in BUILDS:
-        raise PfbenchError(f"precision must be one of {sorted(BUILDS)}, got {precision!r}")
+        raise InputError(f"precision must be one of {sorted(BUILDS)}, got {precision!r}")
     why = [m for m in missing() if "unicorn" not in m]
     if why:
         raise PfbenchError("; ".join(why))

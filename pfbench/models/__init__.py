@@ -1,14 +1,21 @@
-"""Model registry: ``pfbench.models.get(name, **params)`` and ``pfbench.models.names()``.
+"""Model registry: ``pfbench.models.get(name, **params)``, ``pfbench.models.get_spec("ob3:v4")``
+and ``pfbench.models.names()``.
 
 Every module in this package is imported on first use, so a new model only needs a file
 here with a class decorated by :func:`register`.
+
+A *model spec* is the text a user types to pick a model: its registry name, optionally followed
+by a variant, ``name:vN`` (or ``name:N``), which is the model parameter ``version=N`` (Ob3's
+versions 1-5 of [MultiPDF] §4: ``ob3:v4``). :func:`parse_spec` reads it, :func:`get_spec`
+instantiates it; every command that takes ``--model`` goes through them.
 """
 from __future__ import annotations
 
 import importlib
+import inspect
 import pkgutil
 
-from ..errors import PfbenchError
+from ..errors import InputError
 from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 
 _REGISTRY: dict[str, type[StateSpaceModel]] = {}
@@ -20,7 +27,7 @@ def register(name: str):
 
     def deco(cls):
         if not (isinstance(cls, type) and issubclass(cls, StateSpaceModel)):
-            raise TypeError("register() expects a StateSpaceModel subclass")
+            raise TypeError("register() expects a StateSpaceModel subclass")  # a bug in the model file
         cls.name = name
         _REGISTRY[name] = cls
         return cls
@@ -49,17 +56,54 @@ def model_class(name: str) -> type[StateSpaceModel]:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise PfbenchError(f"unknown model {name!r}; known models: {', '.join(names())}") from None
+        raise InputError(f"unknown model {name!r}; known models: {', '.join(names())}") from None
 
 
 def get(name: str, **params) -> StateSpaceModel:
-    """Instantiate the registered model ``name`` with keyword parameters."""
+    """Instantiate the registered model ``name`` with keyword parameters.
+
+    A parameter the model does not take or refuses (its constructor raises TypeError or
+    ValueError) is an :class:`~pfbench.errors.InputError` naming the model.
+    """
     cls = model_class(name)
     try:
         return cls(**params)
-    except TypeError as exc:
-        raise PfbenchError(f"bad parameters for model {name!r}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"bad parameters for model {name!r}: {exc}") from None
+
+
+def parse_spec(spec: str, params: dict | None = None) -> tuple[str, dict]:
+    """``"ob3:v4"`` -> ``("ob3", {"version": 4})``, merged with ``params``.
+
+    The variant after the colon is ``vN`` or ``N`` (an integer >= 1) and means ``version=N``; the
+    model must take a ``version`` parameter. Giving the variant both ways (``ob3:v4`` and
+    ``version=2``) is an :class:`~pfbench.errors.InputError`, as is an unknown model name.
+    """
+    params = dict(params or {})
+    text = str(spec).strip()
+    name, sep, variant = text.partition(":")
+    name = name.strip()
+    cls = model_class(name)  # validates the name
+    if not sep:
+        return name, params
+    v = variant.strip()
+    digits = v[1:] if v[:1] in ("v", "V") else v
+    if not digits.isdigit() or int(digits) < 1:
+        raise InputError(f"model {text!r}: the variant after ':' must be vN or N (e.g. {name}:v2)")
+    if "version" not in inspect.signature(cls.__init__).parameters:
+        raise InputError(f"model {name!r} has no variants (no 'version' parameter), got {text!r}")
+    if "version" in params and params["version"] != int(digits):
+        raise InputError(f"model {text!r} and version={params['version']!r} disagree: give the "
+                         "variant once")
+    params["version"] = int(digits)
+    return name, params
+
+
+def get_spec(spec: str, **params) -> StateSpaceModel:
+    """Instantiate a model spec (``"ob1"``, ``"ob3:v4"``) with extra keyword parameters."""
+    name, params = parse_spec(spec, params)
+    return get(name, **params)
 
 
 __all__ = ["StateSpaceModel", "Trajectory", "gaussian_loglik_diag", "register", "names", "get",
-           "model_class"]
+           "get_spec", "parse_spec", "model_class"]

@@ -56,6 +56,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba.extending import register_jitable
 
+from ..errors import InputError
+
 LOG_2PI = float(np.log(2.0 * np.pi))
 
 
@@ -130,8 +132,19 @@ class StateSpaceModel:
 
     # ----- optional structure: conditionally linear-Gaussian substructure (method="mpf") ------
     #: Indices of the states x^l that form a conditionally linear-Gaussian substructure
-    #: ([Schon2005] eq. 3); the other states are x^n (the particles). None: no structure declared.
-    #: A model that sets it implements the four ``cl_*`` members below.
+    #: ([Schon2005] eq. 3); the other states, in increasing index order, are x^n (the particles).
+    #: None: no structure declared. A model that sets it (as a class or instance attribute)
+    #: implements :meth:`cl_transition`, :meth:`cl_observation`, :meth:`cl_noise` and
+    #: :meth:`cl_prior` (and may override :meth:`cl_constrain`); ``pfbench.run_filter(...,
+    #: method="mpf")`` then runs the marginalized PF of :mod:`pfbench.filters.marginalized`, and
+    #: ``method="kalman"`` the same recursion when every state is in x^l. The model in full::
+    #:
+    #:     x^n_t = f^n(x^n_{t-1}) + A^n(x^n_{t-1}) x^l_{t-1} + w^n
+    #:     x^l_t = f^l(x^n_{t-1}) + A^l(x^n_{t-1}) x^l_{t-1} + w^l,   (w^n, w^l) ~ N(0, Q)
+    #:     y_t   = h(x^n_t, x^l_t) + e,                               e ~ N(0, R)
+    #:
+    #: The ``cl_*`` staticmethods follow the rules of the four model functions (vectorised over
+    #: particles, parameters in ``p``, numba-compilable); the numba backend compiles them.
     linear_states: tuple[int, ...] | None = None
 
     @staticmethod
@@ -140,7 +153,9 @@ class StateSpaceModel:
 
             x^n_t = f^n + A^n x^l_{t-1} + w^n,   x^l_t = f^l + A^l x^l_{t-1} + w^l
 
-        Returns (f^n (n, d_n), A^n (n, d_n, d_l), f^l (n, d_l), A^l (n, d_l, d_l)).
+        Returns (f^n (n, d_n), A^n (n, d_n, d_l), f^l (n, d_l), A^l (n, d_l, d_l)), one matrix per
+        particle (they may depend on x^n_{t-1}, ``u`` = u[t] and ``t``). With d_n = 0, ``xn`` is
+        (n, 0) and f^n, A^n are empty arrays of those shapes.
         """
         raise NotImplementedError
 
@@ -148,41 +163,73 @@ class StateSpaceModel:
     def cl_observation(xn, xl, u, t, p):  # pragma: no cover - optional
         """The measurement linearised in x^l at ``xl`` (n, d_l): y_t = h + C (x^l_t - xl) + e.
 
-        Returns (h (n, n_y), C (n, n_y, d_l)); exact, and C independent of ``xl``, when y is
-        linear in x^l (h = h(x^n) + C(x^n) xl, [Schon2005] eq. 3c).
+        Returns (h (n, n_y), C (n, n_y, d_l)) with h = h(x^n_t, xl) and C = dh/dx^l at ``xl``. The
+        filter calls it at the predicted mean of x^l (an EKF linearisation, as the MPF of
+        [MultiPDF] §5); it is exact, and C independent of ``xl``, when y is linear in x^l
+        (h = h(x^n) + C(x^n) xl, [Schon2005] eq. 3c). A model without an analytic Jacobian can
+        build C column by column with :func:`central_difference_points`.
         """
         raise NotImplementedError
 
+    @staticmethod
+    def cl_constrain(xn, p):
+        """Optional hard constraints on freshly sampled x^n_t (n, d_n); returns the constrained
+        array (default: unchanged). The filter applies them after the Kalman time update has used
+        the unconstrained draw and before the measurement update."""
+        return xn
+
     def cl_noise(self):  # pragma: no cover - optional
-        """(Q (n_x, n_x), R (n_y, n_y)): covariances of (w^n, w^l) in full-state order and of e."""
+        """(Q (n_x, n_x), R (n_y, n_y)): covariances of (w^n, w^l) in full-state order and of e.
+
+        Q^n (the x^n block) must be positive definite when d_n > 0; a cross-covariance between
+        w^n and w^l is allowed (the filter decorrelates it, as [Schon2005] does). R may be full
+        (positive definite): the filter whitens the measurement with its Cholesky factor.
+        """
         raise NotImplementedError
 
     def cl_prior(self):  # pragma: no cover - optional
-        """(m0 (d_l,), P0 (d_l, d_l)): Gaussian prior of x^l; x^n starts from :meth:`initial`."""
+        """(m0 (d_l,), P0 (d_l, d_l)): Gaussian prior of x^l, independent of x^n; x^n starts from
+        the x^n columns of :meth:`initial` (not drawn when d_n = 0)."""
         raise NotImplementedError
 
     # ----- optional structure: a proposal (method="guided") ---------------------------
-    #: How the model helps ``method="guided"``: None (not supported), ``"proposal"`` (the model's
-    #: own proposal: :meth:`proposal` and :meth:`proposal_log_weight`), or ``"optimal"`` (the
-    #: locally optimal proposal p(x_t | x_{t-1}, y_t): :meth:`proposal` samples it and
-    #: :meth:`predictive_log_likelihood` gives its weight p(y_t | x_{t-1})).
+    #: How the model helps ``method="guided"`` (:mod:`pfbench.filters.guided`):
+    #:
+    #: * None: not supported (UnsupportedError);
+    #: * ``"proposal"``: the model's own importance density q(x_t | x_{t-1}, y_t), sampled by
+    #:   :meth:`proposal` and weighted by :meth:`proposal_log_weight`; per step the filter proposes,
+    #:   weights, estimates, then resamples if N_eff is low;
+    #: * ``"optimal"``: the locally optimal proposal p(x_t | x_{t-1}, y_t) ([Doucet2000]), sampled by
+    #:   :meth:`proposal`, whose weight p(y_t | x_{t-1}) is :meth:`predictive_log_likelihood`; per
+    #:   step the filter weights, resamples if N_eff is low, then proposes (fully adapted).
+    #:
+    #: The functions follow the rules of the four model functions (vectorised over particles,
+    #: parameters in ``p``, numba-compilable) and the time convention above (``y``, ``u`` are
+    #: ``y[t]``, ``u[t]``; ``x_prev`` is x_{t-1}). Models with additive Gaussian transition noise
+    #: and a linear-Gaussian observation can build both ``"optimal"`` functions from
+    #: :func:`pfbench.filters.guided.optimal_gaussian_proposal` and
+    #: :func:`~pfbench.filters.guided.optimal_gaussian_log_predictive` (as ``pmsm`` does).
     proposal_kind: str | None = None
-    #: standard normals per particle and step that :meth:`proposal` takes
+    #: standard normals per particle and step that :meth:`proposal` takes (None: ``n_noise``)
     n_proposal_noise: int | None = None
 
     @staticmethod
     def proposal(x_prev, y, u, t, noise, p):  # pragma: no cover - optional
-        """Draw x_t ~ q(x_t | x_{t-1} = ``x_prev``, y_t) with standard normals ``noise``; (n, n_x)."""
+        """Draw x_t ~ q(x_t | x_{t-1} = ``x_prev``, y_t) (n, n_x) with standard normals ``noise``
+        (n, n_proposal_noise); for ``proposal_kind = "optimal"`` q is p(x_t | x_{t-1}, y_t)."""
         raise NotImplementedError
 
     @staticmethod
     def proposal_log_weight(x, x_prev, y, u, t, p):  # pragma: no cover - optional
-        """log p(y_t | x_t) + log p(x_t | x_{t-1}) - log q(x_t | x_{t-1}, y_t) per particle; (n,)."""
+        """Incremental log-weight of proposed particles ``x`` = x_t from ``x_prev`` = x_{t-1},
+        log p(y_t | x_t) + log p(x_t | x_{t-1}) - log q(x_t | x_{t-1}, y_t); (n,). Constants may
+        not be dropped: the weights also estimate the likelihood p(y_t | y_1:t-1)."""
         raise NotImplementedError
 
     @staticmethod
     def predictive_log_likelihood(y, x_prev, u, t, p):  # pragma: no cover - optional
-        """log p(y_t | x_{t-1}) per particle (the weight of the locally optimal proposal); (n,)."""
+        """log p(y_t | x_{t-1}) per particle of ``x_prev`` (the weight of the locally optimal
+        proposal, normalised in y_t); (n,)."""
         raise NotImplementedError
 
     # ----- non-kernel helpers ----------------------------------------------------------
@@ -201,7 +248,7 @@ class StateSpaceModel:
         noise (n_noise) and the measurement noise (n_obs_noise).
         """
         if int(n_steps) < 1:
-            raise ValueError("n_steps must be >= 1")
+            raise InputError("n_steps must be >= 1")
         n_steps = int(n_steps)
         rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         p = self.params()
@@ -223,13 +270,13 @@ class StateSpaceModel:
         """Inputs as a C-contiguous float64 (n_steps, n_u) array (n_u may be 0)."""
         if u is None:
             if self.n_u:
-                raise ValueError(f"model {self.name!r} needs inputs u of shape (n_steps, {self.n_u})")
+                raise InputError(f"model {self.name!r} needs inputs u of shape (n_steps, {self.n_u})")
             return np.zeros((n_steps, 0))
         u = np.ascontiguousarray(u, dtype=np.float64)
         if u.ndim == 1:
             u = u.reshape(-1, 1)
         if u.shape != (n_steps, self.n_u):
-            raise ValueError(f"inputs u must have shape ({n_steps}, {self.n_u}), got {u.shape}")
+            raise InputError(f"inputs u must have shape ({n_steps}, {self.n_u}), got {u.shape}")
         return u
 
     def kernel_functions(self) -> dict:
@@ -244,6 +291,35 @@ class StateSpaceModel:
 
     def __repr__(self) -> str:
         return f"<model {self.name or type(self).__name__}: n_x={self.n_x}, n_y={self.n_y}, n_u={self.n_u}>"
+
+
+@register_jitable
+def central_difference_points(xl, a):
+    """(xl + eps e_a, xl - eps e_a, 2 eps) with eps = 1e-6 max(1, |xl[:, a]|) per particle: the
+    points of a central-difference Jacobian column C[:, :, a] = (h(x+) - h(x-)) / (2 eps), for a
+    :meth:`StateSpaceModel.cl_observation` whose measurement is nonlinear in x^l."""
+    eps = 1e-6 * np.maximum(1.0, np.abs(xl[:, a]))
+    xp = xl.copy()
+    xm = xl.copy()
+    xp[:, a] += eps
+    xm[:, a] -= eps
+    return xp, xm, 2.0 * eps
+
+
+@register_jitable
+def difference_column(C, a, hp, hm, two_eps):
+    """C[:, :, a] = (h(x+) - h(x-)) / (2 eps), the column of :func:`central_difference_points`."""
+    for k in range(C.shape[1]):
+        C[:, k, a] = (hp[:, k] - hm[:, k]) / two_eps
+
+
+@register_jitable
+def scaled_identities(n, d, scale):
+    """n copies of scale * I_d, (n, d, d): a per-particle A^l = scale I for :meth:`cl_transition`."""
+    out = np.zeros((n, d, d))
+    for i in range(d):
+        out[:, i, i] = scale
+    return out
 
 
 @register_jitable

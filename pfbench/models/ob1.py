@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from . import register
 from .base import LOG_2PI, StateSpaceModel
 
@@ -23,7 +24,7 @@ class Ob1(StateSpaceModel):
 
     def __init__(self, q: float = 10.0, r: float = 1.0, x0: float = 0.1):
         if q <= 0 or r <= 0:
-            raise ValueError("variances q and r must be positive")
+            raise InputError("variances q and r must be positive")
         self.q, self.r, self.x0 = float(q), float(r), float(x0)
 
     def params(self):

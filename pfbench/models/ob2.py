@@ -13,7 +13,8 @@ import numpy as np
 from . import register
 from numba.extending import register_jitable
 
-from .base import StateSpaceModel, gaussian_loglik_diag
+from .base import (StateSpaceModel, central_difference_points, difference_column, gaussian_loglik_diag,
+                   scaled_identities)
 
 
 @register_jitable
@@ -60,3 +61,27 @@ class Ob2(StateSpaceModel):
     @staticmethod
     def observe(x, u, t, noise, p):
         return ob2_h(x) + np.sqrt(p[1]) * noise
+
+    # ----- linear-Gaussian structure (method="mpf"/"kalman"): every state is linear ---------
+    #: x_t = a x_{t-1} + v is linear in every state, so the MPF is one EKF copy ([MultiPDF] §5)
+    linear_states = (0, 1, 2, 3, 4)
+
+    @staticmethod
+    def cl_transition(xn, u, t, p):
+        n = xn.shape[0]
+        return np.zeros((n, 0)), np.zeros((n, 0, 5)), np.zeros((n, 5)), scaled_identities(n, 5, p[2])
+
+    @staticmethod
+    def cl_observation(xn, xl, u, t, p):
+        """h at ``xl`` and its Jacobian by central differences (the EKF of [MultiPDF] §5)."""
+        C = np.empty((xl.shape[0], 15, 5))
+        for a in range(5):
+            xp, xm, two_eps = central_difference_points(xl, a)
+            difference_column(C, a, ob2_h(xp), ob2_h(xm), two_eps)
+        return ob2_h(xl), C
+
+    def cl_noise(self):
+        return self.q * np.eye(5), np.diag(self.r)
+
+    def cl_prior(self):
+        return np.zeros(5), np.zeros((5, 5))  # x^(0) = 0 exactly

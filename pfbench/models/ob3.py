@@ -14,8 +14,10 @@ from __future__ import annotations
 import numpy as np
 from numba.extending import register_jitable
 
+from ..errors import InputError
 from . import register
-from .base import StateSpaceModel, gaussian_loglik_diag
+from .base import (StateSpaceModel, central_difference_points, difference_column, gaussian_loglik_diag,
+                   scaled_identities)
 
 
 @register_jitable
@@ -81,9 +83,9 @@ class Ob3(StateSpaceModel):
     def __init__(self, version: int = 1, pairs: str = "connected", q: float = 1.0, r: float = 1.0,
                  a: float = 0.9):
         if int(version) not in (1, 2, 3, 4, 5):
-            raise ValueError("version must be 1..5")
+            raise InputError("version must be 1..5")
         if pairs not in ("connected", "all"):
-            raise ValueError("pairs must be 'connected' or 'all'")
+            raise InputError("pairs must be 'connected' or 'all'")
         self.version, self.pairs = int(version), pairs
         self.q, self.r, self.a = float(q), float(r), float(a)
         self.mu = np.ones((4, 4))
@@ -113,3 +115,28 @@ class Ob3(StateSpaceModel):
     @staticmethod
     def observe(x, u, t, noise, p):
         return ob3_h(x, p[3], p[4], p[5], p[6]) + np.sqrt(p[1]) * noise
+
+    # ----- linear-Gaussian structure (method="mpf"/"kalman"): every state is linear ---------
+    #: x_t = a x_{t-1} + v is linear in every state, so the MPF is one EKF copy ([MultiPDF] §5)
+    linear_states = (0, 1, 2, 3)
+
+    @staticmethod
+    def cl_transition(xn, u, t, p):
+        n = xn.shape[0]
+        return np.zeros((n, 0)), np.zeros((n, 0, 4)), np.zeros((n, 4)), scaled_identities(n, 4, p[2])
+
+    @staticmethod
+    def cl_observation(xn, xl, u, t, p):
+        """h at ``xl`` and its Jacobian by central differences (the EKF of [MultiPDF] §5)."""
+        h = ob3_h(xl, p[3], p[4], p[5], p[6])
+        C = np.empty((xl.shape[0], h.shape[1], 4))
+        for a in range(4):
+            xp, xm, two_eps = central_difference_points(xl, a)
+            difference_column(C, a, ob3_h(xp, p[3], p[4], p[5], p[6]), ob3_h(xm, p[3], p[4], p[5], p[6]), two_eps)
+        return h, C
+
+    def cl_noise(self):
+        return self.q * np.eye(4), self.r * np.eye(self.n_y)
+
+    def cl_prior(self):
+        return np.zeros(4), np.eye(4) / 3.0  # x^(0) ~ U[-1, 1]: mean 0, variance 1/3

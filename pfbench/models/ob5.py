@@ -166,6 +166,52 @@ class Ob5(StateSpaceModel):
     def observe(x, u, t, noise, p):
         return ob5_h(x) + np.sqrt(p[5]) * noise
 
+    # ----- linear-Gaussian structure (method="mpf") -------------------------------------
+    #: the velocity x2 enters every equation linearly and no measurement: x^l = x2, and
+    #: x^n = (x1, x3, x4) are the particles ([MultiPDF] §5: "one linear and three nonlinear")
+    linear_states = (1,)
+
+    @staticmethod
+    def cl_transition(xn, u, t, p):
+        """The Euler step of :func:`ob5_step` split as f^n + A^n x2 and f^l + A^l x2, x^n = (x1, x3, x4)."""
+        ts = p[0]
+        xd = p[1]
+        n = xn.shape[0]
+        u1 = min(max(u[0], 0.00498), 1.0)
+        u2 = min(max(u[1], 0.00498), 1.0)
+        x1 = xn[:, 0]
+        fn = xn.copy()
+        fn[:, 1] = xn[:, 1] + ob5_coil_factor(x1, ts) * (2.5165 * u1 + 0.0243 - xn[:, 1])
+        fn[:, 2] = xn[:, 2] + ob5_coil_factor(xd - x1, ts) * (2.5165 * u2 + 0.0243 - xn[:, 2])
+        An = np.zeros((n, 3, 1))
+        An[:, 0, 0] = ts
+        fl = np.empty((n, 1))
+        fl[:, 0] = ts * (p[3] - ob5_fem(xn[:, 1], x1) / p[2] + ob5_fem(xn[:, 2], xd - x1) / p[2])
+        return fn, An, fl, np.ones((n, 1, 1))
+
+    @staticmethod
+    def cl_observation(xn, xl, u, t, p):
+        """y = (x1, Fem1(x3, x1)) does not depend on x2: C = 0."""
+        h = np.empty((xn.shape[0], 2))
+        h[:, 0] = xn[:, 0]
+        h[:, 1] = ob5_fem(xn[:, 1], xn[:, 0])
+        return h, np.zeros((xn.shape[0], 2, 1))
+
+    @staticmethod
+    def cl_constrain(xn, p):
+        """The §4 constraints of :func:`ob5_step` on (x1, x3, x4); x2 is not constrained."""
+        out = xn.copy()
+        out[:, 0] = np.minimum(np.maximum(xn[:, 0], 0.0), p[1])
+        out[:, 1] = np.minimum(np.maximum(xn[:, 1], 0.03884), 2.38)
+        out[:, 2] = np.minimum(np.maximum(xn[:, 2], 0.03884), 2.38)
+        return out
+
+    def cl_noise(self):
+        return np.diag(self.q_std ** 2), np.diag(self.r_std ** 2)
+
+    def cl_prior(self):
+        return self.x_eq[[1]].copy(), np.array([[self.p0_std[1] ** 2]])
+
     # ----- stabilising controller ------------------------------------------------------
     def control(self, x: np.ndarray) -> np.ndarray:
         """u = (u1, u2) from the state x (4,): PD force law -> current set-point -> coil loop."""

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from . import register
 from .base import LOG_2PI, StateSpaceModel
 
@@ -78,9 +79,9 @@ class _TwoInertial(StateSpaceModel):
                  tc1: float = T_C1, tc2: float = T_C2, ts: float = 1.0, p0_var: float | None = None):
         # var_* are the paper's sigma^2 (variances), as in the CLI --param var_n=0.005
         if var_v1 < 0 or (var_v2 is not None and var_v2 < 0) or var_n <= 0:
-            raise ValueError("variances must be >= 0 (var_n > 0)")
+            raise InputError("variances must be >= 0 (var_n > 0)")
         if min(th1, th2, tc1, tc2, ts) <= 0:
-            raise ValueError("time constants and T_s must be positive")
+            raise InputError("time constants and T_s must be positive")
         self.y0 = float(y0)
         self.var_v1 = float(var_v1)
         self.var_v2 = float(var_v1 if var_v2 is None else var_v2)
@@ -217,7 +218,7 @@ class ThermalRate(StateSpaceModel):
     def __init__(self, y0: float = 19.5, var_v1: float = 1e-6, var_v2: float = 0.0,
                  var_n: float = 0.0225, p0_var: float | None = None):
         if var_v1 < 0 or var_v2 < 0 or var_n <= 0:
-            raise ValueError("variances must be >= 0 (var_n > 0)")
+            raise InputError("variances must be >= 0 (var_n > 0)")
         self.y0, self.var_v1, self.var_v2, self.var_n = map(float, (y0, var_v1, var_v2, var_n))
         self.p0_var = float(self.var_n if p0_var is None else p0_var)
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from . import register
 from .base import LOG_2PI, StateSpaceModel
 
@@ -33,7 +34,7 @@ class ThesisExample(StateSpaceModel):
         self.growth, self.sigma_w, self.sigma_v, self.sigma_0 = (
             float(growth), float(sigma_w), float(sigma_v), float(sigma_0))
         if min(self.sigma_w, self.sigma_v, self.sigma_0) < 0 or self.sigma_v == 0:
-            raise ValueError("standard deviations must be >= 0 (sigma_v > 0)")
+            raise InputError("standard deviations must be >= 0 (sigma_v > 0)")
         self.outlier_step = int(outlier_step)
         self.outlier_value = float(outlier_value)
 

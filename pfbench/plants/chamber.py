@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import PfbenchError
+from ..errors import NumericalError
 
 RESOLUTION = 0.0625          # DS18B20 12-bit resolution, degC
 FAN_MIN, FAN_MAX = 30.0, 100.0
@@ -150,7 +150,7 @@ class Chamber:
             if np.max(np.abs(k - s)) < 1e-10:
                 return k
             s = k
-        raise PfbenchError("chamber steady state did not converge")  # pragma: no cover
+        raise NumericalError("chamber steady state did not converge")  # pragma: no cover
 
     def _rk4(self, s, u1, u2, t_room, h):
         k1 = self._deriv(s, u1, u2, t_room)

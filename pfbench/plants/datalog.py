@@ -9,7 +9,7 @@ gap), ``y`` indoor temperature (degC), ``u1`` heater %, ``u2`` fan %, optional `
 temperature (required by ``thermal_outdoor``) and ``mode`` (1 heating, 0 cooling; if absent the
 thermal models derive it as u1 >= 50 %). Which columns are required depends on the model: always
 ``time_s`` and ``y`` (or ``y1..y<n_y>``), plus the model's ``log_columns`` (default ``u1..u<n_u>``).
-Every problem raises :class:`pfbench.errors.PfbenchError` with one line naming the file line.
+Every problem raises :class:`pfbench.errors.DataError` with one line naming the file line.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import PfbenchError
+from ..errors import DataError
 from ..models.base import StateSpaceModel, Trajectory
 
 GAP_FACTOR = 1.5
@@ -38,14 +38,14 @@ def _required(model: StateSpaceModel | None) -> tuple[str, ...]:
 def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray]:
     """Read and validate a log; returns {column: float64 array} for every column in the header.
 
-    Raises PfbenchError (one line, naming the line) for a missing file or column, an empty log,
+    Raises DataError (one line, naming the line) for a missing file or column, an empty log,
     a short row, a non-numeric or non-finite value, non-increasing time or a gap in time.
     """
     path = Path(path)
     try:
         fh = open(path, newline="", encoding="utf-8")
     except OSError as exc:
-        raise PfbenchError(f"{path}: cannot read log: {exc.strerror or exc}") from None
+        raise DataError(f"{path}: cannot read log: {exc.strerror or exc}") from None
     with fh:
         reader = csv.reader(fh)
         header = None
@@ -54,12 +54,12 @@ def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray
                 header = [c.strip() for c in row]
                 break
         if header is None:
-            raise PfbenchError(f"{path}: empty log (no header line)")
+            raise DataError(f"{path}: empty log (no header line)")
         hline = reader.line_num
         missing = [c for c in required if c not in header]
         if missing:
-            raise PfbenchError(f"{path}:{hline}: missing column(s) {', '.join(missing)} in header "
-                               f"(have: {', '.join(header)})")
+            raise DataError(f"{path}:{hline}: missing column(s) {', '.join(missing)} in header "
+                            f"(have: {', '.join(header)})")
         data: list[list[float]] = []
         lines: list[int] = []
         for row in reader:
@@ -67,21 +67,21 @@ def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray
                 continue
             line = reader.line_num
             if len(row) != len(header):
-                raise PfbenchError(f"{path}:{line}: expected {len(header)} values, got {len(row)}")
+                raise DataError(f"{path}:{line}: expected {len(header)} values, got {len(row)}")
             vals = []
             for name, cell in zip(header, row):
                 try:
                     v = float(cell)
                 except ValueError:
-                    raise PfbenchError(f"{path}:{line}: non-numeric value {cell.strip()!r} in column "
-                                       f"{name!r}") from None
+                    raise DataError(f"{path}:{line}: non-numeric value {cell.strip()!r} in column "
+                                    f"{name!r}") from None
                 if not math.isfinite(v):
-                    raise PfbenchError(f"{path}:{line}: non-finite value {cell.strip()!r} in column {name!r}")
+                    raise DataError(f"{path}:{line}: non-finite value {cell.strip()!r} in column {name!r}")
                 vals.append(v)
             data.append(vals)
             lines.append(line)
     if not data:
-        raise PfbenchError(f"{path}: log has a header but no data rows")
+        raise DataError(f"{path}: log has a header but no data rows")
     arr = np.array(data, dtype=np.float64)
     cols = {name: np.ascontiguousarray(arr[:, i]) for i, name in enumerate(header)}
     if "time_s" in cols and len(arr) > 1:
@@ -90,13 +90,13 @@ def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray
         bad = np.flatnonzero(dt <= 0)
         if bad.size:
             i = bad[0] + 1
-            raise PfbenchError(f"{path}:{lines[i]}: time not increasing (time_s {t[i]:g} after {t[i - 1]:g})")
+            raise DataError(f"{path}:{lines[i]}: time not increasing (time_s {t[i]:g} after {t[i - 1]:g})")
         step = float(np.median(dt))
         gaps = np.flatnonzero(dt > GAP_FACTOR * step)
         if gaps.size:
             i = gaps[0] + 1
-            raise PfbenchError(f"{path}:{lines[i]}: gap in time ({dt[i - 1]:g} s between time_s "
-                               f"{t[i - 1]:g} and {t[i]:g}; sample step {step:g} s)")
+            raise DataError(f"{path}:{lines[i]}: gap in time ({dt[i - 1]:g} s between time_s "
+                            f"{t[i - 1]:g} and {t[i]:g}; sample step {step:g} s)")
     return cols
 
 

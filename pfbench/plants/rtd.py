@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import PfbenchError
+from ..errors import DataError, InputError
 from ..filters.kalman import steady_state_kf, time_varying_kf
 
 TF_NUM = (2.278, 0.1711)                 # eq. 52 numerator
@@ -132,15 +132,15 @@ def fit_exponential(t, y) -> RCFit:
     t = np.asarray(t, dtype=np.float64).ravel()
     y = np.asarray(y, dtype=np.float64).ravel()
     if t.shape != y.shape or t.size < 2:
-        raise PfbenchError("fit_exponential: need at least two (t, y) pairs of equal length")
+        raise InputError("fit_exponential: need at least two (t, y) pairs of equal length")
     if np.any(~np.isfinite(y)) or np.any(y <= 0):
-        raise PfbenchError("fit_exponential: y must be positive (log-linear fit)")
+        raise InputError("fit_exponential: y must be positive (log-linear fit)")
     Y = np.log(y)
     n = t.size
     st, sy, stt, sty = t.sum(), Y.sum(), (t * t).sum(), (t * Y).sum()
     den = n * stt - st * st
     if den == 0:
-        raise PfbenchError("fit_exponential: all t are equal")
+        raise InputError("fit_exponential: all t are equal")
     B = (n * sty - st * sy) / den
     c = (stt * sy - st * sty) / den
     return RCFit(float(np.exp(c)), float(B), n)
@@ -157,11 +157,11 @@ def fit_rc_step(t, y, y_final: float, y_start: float | None = None, frac: tuple 
     y0 = y[0] if y_start is None else y_start
     step = y_final - y0
     if step == 0:
-        raise PfbenchError("fit_rc_step: the response has no step")
+        raise InputError("fit_rc_step: the response has no step")
     progress = (y - y0) / step
     sel = (progress >= frac[0]) & (progress <= frac[1])
     if sel.sum() < 3:
-        raise PfbenchError("fit_rc_step: fewer than 3 points inside the fit window")
+        raise InputError("fit_rc_step: fewer than 3 points inside the fit window")
     return fit_exponential(t[sel] - t[sel][0], np.abs(y_final - y[sel]))
 
 
@@ -172,7 +172,7 @@ def rc_model(tau: float, Ts: float = TS, gain: float = 1.0) -> DiscreteModel:
     temperature u; ``gain`` is the amplifier gain of the readings (260 for ADC counts, 1 for degC).
     """
     if not np.isfinite(tau) or tau <= 0:
-        raise PfbenchError(f"rc_model: the time constant must be positive, got {tau}")
+        raise InputError(f"rc_model: the time constant must be positive, got {tau}")
     a = float(np.exp(-Ts / tau))
     return DiscreteModel(np.array([[a]]), np.array([[1.0 - a]]), np.array([[gain]]), Ts)
 
@@ -194,9 +194,9 @@ def simulate_fig5(n: int = 600, Qu: float = 2.3, R: float = 1.0, u: float = U_ST
     y_true = m.simulate(U, w)
     y_meas = y_true + v
     Qx = Qu * (m.B @ m.B.T)
-    res = time_varying_kf(m.A, m.B, m.C, Qx, [[R]], U, y_meas)
-    return {"t": np.arange(n) * m.Ts, "u": U, "y_true": y_true, "y_meas": y_meas, "yest": res.yest,
-            "errcov": res.errcov, "gain": res.gains[:, 0, 0], "model": m, "Qx": Qx}
+    ex = time_varying_kf(m.A, m.B, m.C, Qx, [[R]], U, y_meas).extras
+    return {"t": np.arange(n) * m.Ts, "u": U, "y_true": y_true, "y_meas": y_meas, "yest": ex["yest"][:, 0],
+            "errcov": ex["errcov"][:, 0, 0], "gain": ex["gains"][:, 0, 0], "model": m, "Qx": Qx}
 
 
 def bath_profile(T_low: float = 25.0, T_high: float = 38.0, t_hold: float = 60.0, Ts: float = TS):
@@ -244,12 +244,12 @@ def boundary_layer(y, u, rc: DiscreteModel, qr_a=(1.0, 0.05), qr_b=(1e-4, 0.05),
     b2 = float(rc.B[0, 0] ** 2)
     out, gains = [], []
     for Q, R in (qr_a, qr_b):
-        r = steady_state_kf(rc.A, rc.B, rc.C, [[Q * b2]], [[R]], u, y, x0=x0)
-        out.append(np.concatenate([[y[0]], r.ypred[:-1]]))
-        gains.append(float(r.gains[0, 0, 0]))
+        ex = steady_state_kf(rc.A, rc.B, rc.C, [[Q * b2]], [[R]], u, y, x0=x0).extras
+        out.append(np.concatenate([[y[0]], ex["ypred"][:-1, 0]]))
+        gains.append(float(ex["gains"][0, 0, 0]))
     Q, R = qr_kf
     kf = time_varying_kf(rc.A, rc.B, rc.C, [[Q * b2]], [[R]], u, y, x0=x0, P0=[[Q * b2]])
-    return BoundaryLayer(kf.yest, out[0], out[1], tuple(gains))
+    return BoundaryLayer(kf.extras["yest"][:, 0], out[0], out[1], tuple(gains))
 
 
 def envelope_fraction(y_ref, p1, p2, mask=None) -> float:
@@ -266,7 +266,8 @@ def envelope_fraction(y_ref, p1, p2, mask=None) -> float:
 
 def load_log(path) -> dict:
     """Read a thermal-bath CSV log: columns ``t`` (s) and ``y`` (reading), optional ``u`` (bath
-    temperature / set-point, same units as y). Raises PfbenchError with one line on bad files.
+    temperature / set-point, same units as y). Raises DataError (a PfbenchError) with one line on
+    bad files.
 
     Without ``u`` the set-point is reconstructed: the run is split at the (smoothed) maximum; before
     it the target is the mean of the readings within 2 % of the maximum level's last tenth, after it
@@ -276,29 +277,29 @@ def load_log(path) -> dict:
 
     p = Path(path)
     if not p.is_file():
-        raise PfbenchError(f"data file not found: {p}")
+        raise DataError(f"data file not found: {p}")
     try:
         df = pd.read_csv(p)
     except Exception as exc:  # pandas raises several types (ParserError, UnicodeDecodeError, ...)
-        raise PfbenchError(f"cannot parse {p} as CSV: {str(exc).splitlines()[0] if str(exc) else exc}") from None
+        raise DataError(f"cannot parse {p} as CSV: {str(exc).splitlines()[0] if str(exc) else exc}") from None
     df.columns = [str(c).strip().lower() for c in df.columns]
     for col in ("t", "y"):
         if col not in df.columns:
-            raise PfbenchError(f"{p}: missing column {col!r} (need t, y and optionally u)")
+            raise DataError(f"{p}: missing column {col!r} (need t, y and optionally u)")
     cols = ["t", "y"] + (["u"] if "u" in df.columns else [])
     try:
         arr = {c: pd.to_numeric(df[c], errors="raise").to_numpy(dtype=np.float64) for c in cols}
     except (ValueError, TypeError):
-        raise PfbenchError(f"{p}: non-numeric values in columns {cols}") from None
+        raise DataError(f"{p}: non-numeric values in columns {cols}") from None
     if len(arr["t"]) < 20:
-        raise PfbenchError(f"{p}: need at least 20 rows, got {len(arr['t'])}")
+        raise DataError(f"{p}: need at least 20 rows, got {len(arr['t'])}")
     if not all(np.all(np.isfinite(v)) for v in arr.values()):
-        raise PfbenchError(f"{p}: NaN or inf values")
+        raise DataError(f"{p}: NaN or inf values")
     dt = np.diff(arr["t"])
     if np.any(dt <= 0):
-        raise PfbenchError(f"{p}: column t must be strictly increasing")
+        raise DataError(f"{p}: column t must be strictly increasing")
     if np.ptp(dt) > 0.01 * np.median(dt):
-        raise PfbenchError(f"{p}: column t must be uniformly sampled (dt varies from {dt.min():g} to {dt.max():g})")
+        raise DataError(f"{p}: column t must be uniformly sampled (dt varies from {dt.min():g} to {dt.max():g})")
     arr["Ts"] = float(np.median(dt))
     if "u" not in arr:
         arr["u"] = reconstruct_setpoint(arr["y"])

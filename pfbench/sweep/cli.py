@@ -1,5 +1,11 @@
 """``pfbench sweep``: run a Monte Carlo grid (``pfbench sweep [run] --model ...``) and
-``pfbench sweep summarize STORE [--json]``."""
+``pfbench sweep summarize STORE [--json]``.
+
+A grid file (YAML or TOML) holds any of the command-line options as a mapping (``model: ob3:v4``,
+``particles: [100, 200]``, ``method: [multipdf, mpf]``, ``runs: 100``, ...); model parameters go
+in ``params: {version: 4}`` or as ``param: ["version=4"]`` texts, read by the same
+:func:`pfbench.options.parse_key_values` as ``--param``. Command-line options win.
+"""
 from __future__ import annotations
 
 import json
@@ -8,23 +14,32 @@ from pathlib import Path
 
 import click
 
-from ..errors import PfbenchError
+from ..errors import DataError, InputError
+from ..filters.methods import METHODS
+from ..options import check_known, parse_key_values, typed
 
 
-def _ints(text: str, name: str) -> list[int]:
-    try:
-        vals = [int(v) for v in str(text).replace(" ", "").split(",") if v]
-    except ValueError:
-        raise PfbenchError(f"{name} must be a comma-separated list of integers, got {text!r}") from None
+def _ints(value, name: str) -> list[int]:
+    """``"100,200"`` (command line) or ``[100, 200]`` / ``100`` (grid file) -> [100, 200]."""
+    if isinstance(value, (list, tuple)):
+        vals = [typed(v, int, name) for v in value]
+    else:
+        vals = [typed(v, int, name) for v in str(value).replace(" ", "").split(",") if v]
     if not vals:
-        raise PfbenchError(f"{name} is empty")
+        raise InputError(f"{name} is empty")
     return vals
+
+
+def _names(value) -> list[str]:
+    """``"multipdf,mpf"`` or ``["multipdf", "mpf"]`` -> ["multipdf", "mpf"]."""
+    items = value if isinstance(value, (list, tuple)) else str(value).split(",")
+    return [str(m).strip() for m in items if str(m).strip()]
 
 
 def _grid_file(path: str) -> dict:
     p = Path(path)
     if not p.is_file():
-        raise PfbenchError(f"grid file {p} does not exist")
+        raise InputError(f"grid file {p} does not exist")
     text = p.read_text()
     try:
         if p.suffix == ".toml":
@@ -35,22 +50,25 @@ def _grid_file(path: str) -> dict:
 
         data = yaml.safe_load(text)
     except Exception as exc:  # noqa: BLE001 - parser errors of either format
-        raise PfbenchError(f"cannot parse grid file {p}: {exc}") from None
+        raise DataError(f"cannot parse grid file {p}: {' '.join(str(exc).split())}") from None
     if not isinstance(data, dict):
-        raise PfbenchError(f"grid file {p} must hold a mapping of options")
-    return data
+        raise DataError(f"grid file {p} must hold a mapping of options")
+    opts = {str(k).replace("-", "_"): v for k, v in data.items()}
+    check_known(opts, GRID_KEYS, f"grid file {p}", flag="key")
+    return opts
 
 
 _OPTIONS = [
     click.option("--grid", "grid", type=click.Path(dir_okay=False), default=None,
                  help="YAML/TOML file with any of these options (command-line options win)."),
-    click.option("--model", default=None, help="Model name (see `pfbench models`)."),
-    click.option("--version", "version", type=int, default=None, help="Model version (Ob3: 1-5)."),
-    click.option("--param", "param", multiple=True, help="Model parameter KEY=VALUE (JSON value)."),
+    click.option("--model", default=None,
+                 help="Model, optionally with a variant: ob1, ob3:v4 (`pfbench info` lists them)."),
+    click.option("--param", "param", multiple=True, metavar="KEY=VALUE",
+                 help="Model parameter (repeatable; JSON-typed, as `pfbench run --param`)."),
     click.option("--particles", default=None, help="N_p values, e.g. 100,200,500,1000."),
     click.option("--filters", default=None, help="N_f values (MultiPDF), e.g. 1,2,3,5,10."),
     click.option("--method", default=None,
-                 help="multipdf, bootstrap, mpf, or a comma-separated list of them."),
+                 help=f"One or a comma-separated list of: {', '.join(METHODS)} (default multipdf)."),
     click.option("--runs", type=int, default=None, help="Monte Carlo runs per configuration."),
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
     click.option("--backend", default=None, help="numba (default) or numpy."),
@@ -70,39 +88,43 @@ def _with_options(f):
     return f
 
 
+#: keys a grid file may hold (the options above, plus ``params`` as a mapping)
+GRID_KEYS = ("model", "param", "params", "particles", "filters", "method", "runs", "steps",
+             "backend", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
+
+
 def _do_run(kw: dict) -> None:
     from .core import make_spec
     from .runner import run_sweep
 
     grid = _grid_file(kw.pop("grid")) if kw.get("grid") else {}
     kw.pop("grid", None)
-    opts = {k.replace("-", "_"): v for k, v in grid.items()}
+    opts = dict(grid)
     opts.update({k: v for k, v in kw.items() if v is not None and v is not False and v != ()})
     if not opts.get("model"):
-        raise PfbenchError("give --model (or a --grid file); `pfbench sweep --help` lists the options")
+        raise InputError("give --model (or a --grid file); `pfbench sweep --help` lists the options")
     if not opts.get("out"):
-        raise PfbenchError("give --out STORE (e.g. results/sweeps/ob1.parquet)")
-    params = dict(opts.get("params") or {})
-    for item in opts.get("param", ()):
-        if "=" not in item:
-            raise PfbenchError(f"--param expects KEY=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        try:
-            params[k] = json.loads(v)
-        except ValueError:
-            params[k] = v
-    if opts.get("version") is not None:
-        params["version"] = int(opts["version"])
-    as_list = lambda v, name: v if isinstance(v, list) else _ints(v, name)  # noqa: E731
-    methods = opts.get("method", "multipdf")
-    methods = methods if isinstance(methods, list) else [m.strip() for m in str(methods).split(",")]
-    spec = make_spec(opts["model"], params=params, methods=methods,
-                     particles=as_list(opts.get("particles", "100"), "--particles"),
-                     filters=as_list(opts.get("filters", "1"), "--filters"),
-                     runs=int(opts.get("runs", 10)), steps=int(opts.get("steps", 100)),
-                     seed=int(opts.get("seed", 0)), backend=opts.get("backend", "numba"))
+        raise InputError("give --out STORE (e.g. results/sweeps/ob1.parquet)")
+    params = opts.get("params") or {}
+    if not isinstance(params, dict):
+        raise InputError("params (grid file) must be a mapping of model parameters")
+    params = dict(params)
+    texts = opts.get("param", ())
+    texts = [texts] if isinstance(texts, str) else list(texts)
+    for k, v in parse_key_values(texts, "--param").items():
+        if k in params and params[k] != v:
+            raise InputError(f"model parameter {k} is given twice ({params[k]!r} and {v!r})")
+        params[k] = v
+    spec = make_spec(opts["model"], params=params, methods=_names(opts.get("method", "multipdf")),
+                     particles=_ints(opts.get("particles", "100"), "--particles"),
+                     filters=_ints(opts.get("filters", "1"), "--filters"),
+                     runs=typed(opts.get("runs", 10), int, "--runs"),
+                     steps=typed(opts.get("steps", 100), int, "--steps"),
+                     seed=typed(opts.get("seed", 0), int, "--seed"),
+                     backend=str(opts.get("backend", "numba")))
     try:
-        rep = run_sweep(spec, opts["out"], workers=opts.get("workers"),
+        workers = opts.get("workers")
+        rep = run_sweep(spec, opts["out"], workers=None if workers is None else typed(workers, int, "--workers"),
                         executor=opts.get("executor", "local"), scheduler=opts.get("scheduler"),
                         progress=not opts.get("quiet"), overwrite=bool(opts.get("overwrite")))
     except KeyboardInterrupt:
@@ -121,7 +143,7 @@ def _do_run(kw: dict) -> None:
 def sweep(ctx, **kw):
     """Monte Carlo aRMSE sweeps over (method, N_p, N_f) x runs, resumable, local or Dask.
 
-    `pfbench sweep --model ob3 --version 4 --particles 100,200 --filters 1,2,5 --runs 100
+    `pfbench sweep --model ob3:v4 --particles 100,200 --filters 1,2,5 --runs 100
     --out results/sweeps/ob3v4.parquet` (same as `pfbench sweep run ...`).
     """
     if ctx.invoked_subcommand is None:

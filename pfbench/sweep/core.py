@@ -2,22 +2,26 @@
 
 A sweep runs every configuration (method, N_p, N_f) on ``runs`` independently simulated
 trajectories of one model and records the aRMSE of each (configuration, run) task
-([MultiPDF] eqs. 11-13).
+([MultiPDF] eqs. 11-13). Every method of :class:`pfbench.Method` can be swept; :func:`make_spec`
+refuses a method the model does not support (one line, before any work).
 
 Seeds (numpy ``SeedSequence`` with spawn keys, derived from one root ``seed``):
 
 * trajectory of run r: ``SeedSequence(seed, spawn_key=(0, r))`` -- the same ground truth for
   every configuration (common random numbers across configurations, which makes the
   N_p / N_f comparisons sharper; the paper also draws a new truth per run);
-* filter of configuration c on run r: ``SeedSequence(seed, spawn_key=(1, method, N_p, N_f, r))``.
+* filter of configuration c on run r: ``SeedSequence(seed, spawn_key=(1, key, N_p, N_f, r))``
+  with ``key`` the method's entry in :data:`SEED_KEY` (fixed forever, so stores stay valid).
 
 So a task's result depends only on (spec, c, r): not on the worker count, the executor, the
 order of completion or on interruptions.
 
 Work unit ("chunk"): one run r and a list of configurations; the trajectory is simulated once
 and every configuration is filtered on it (batched inside one worker call, which amortises
-the Python overhead; the filters themselves are the compiled numba kernels, called directly
-without :func:`pfbench.run_filter`'s thread pool but with exactly its streams and arithmetic).
+the Python overhead). The particle family (bootstrap, sir, sis, asir, multipdf) calls
+:func:`pfbench.filters.particle.run_groups` directly, without :func:`pfbench.run_filter`'s
+thread pool but with exactly its streams and arithmetic; mpf, guided and kalman go through
+:func:`pfbench.run_filter`.
 """
 from __future__ import annotations
 
@@ -27,10 +31,15 @@ import time
 
 import numpy as np
 
-from ..errors import PfbenchError
+from ..errors import InputError
+from ..filters.inputs import check_backend
+from ..filters.methods import METHODS, Method
 
-METHODS = ("multipdf", "bootstrap", "mpf")
-_METHOD_KEY = {"multipdf": 0, "bootstrap": 1, "mpf": 2}
+#: the method's part of a filter seed's spawn key. Never change an entry: it would change every
+#: stored sweep's numbers. New methods take new numbers.
+SEED_KEY = {"multipdf": 0, "bootstrap": 1, "mpf": 2, "sir": 3, "sis": 4, "asir": 5, "guided": 6,
+            "kalman": 7}
+assert set(SEED_KEY) == set(METHODS), "every Method needs a sweep seed key"
 SPEC_VERSION = 1
 
 
@@ -39,45 +48,63 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
               params: dict | None = None, resampling: str = "systematic") -> dict:
     """A normalised sweep specification (a plain JSON-able dict).
 
-    ``configs``: explicit list of (method, n_particles, n_filters); otherwise the product
-    methods x particles x filters (bootstrap and mpf use N_f = 1 only).
+    ``model`` is a model spec (``"ob3:v4"`` = ``"ob3"`` with ``params={"version": 4}``; the spec
+    stores the name and the parameters). ``configs``: explicit list of (method, n_particles,
+    n_filters); otherwise the product methods x particles x filters (only multipdf uses N_f > 1).
+    ``methods`` are :class:`pfbench.Method` names; a method the model does not support is an
+    error here (see :func:`check_supported`).
     """
     from .. import models
+    from ..resampling import Scheme
 
-    cls = models.model_class(model)  # validates the name
-    params = dict(params or {})
-    try:
-        cls(**params)
-    except (TypeError, ValueError) as exc:
-        raise PfbenchError(f"bad parameters for model {model!r}: {exc}") from None
+    model, params = models.parse_spec(model, params)
+    models.get(model, **params)  # validates the parameters
     if configs is None:
         configs = []
         for m in methods:
             for n_p in particles:
-                for n_f in (filters if m == "multipdf" else (1,)):
+                for n_f in (filters if Method.parse(m) == Method.MULTIPDF else (1,)):
                     configs.append((m, int(n_p), int(n_f)))
     out, seen = [], set()
     for m, n_p, n_f in configs:
-        if m not in METHODS:
-            raise PfbenchError(f"unknown sweep method {m!r}; choose one of {', '.join(METHODS)}")
+        m = Method.parse(m).label
         n_p, n_f = int(n_p), int(n_f)
         if n_p < 1 or n_f < 1 or n_f > n_p:
-            raise PfbenchError(f"bad configuration N_p={n_p}, N_f={n_f} (need 1 <= N_f <= N_p)")
+            raise InputError(f"bad configuration N_p={n_p}, N_f={n_f} (need 1 <= N_f <= N_p)")
         if m != "multipdf" and n_f != 1:
-            raise PfbenchError(f"method {m} needs N_f = 1")
+            raise InputError(f"method {m} needs N_f = 1")
         key = (m, n_p, n_f)
         if key not in seen:
             seen.add(key)
             out.append(list(key))
     if not out:
-        raise PfbenchError("the sweep has no configurations")
+        raise InputError("the sweep has no configurations")
     if int(runs) < 1 or int(steps) < 1:
-        raise PfbenchError("--runs and --steps must be >= 1")
-    if backend not in ("numba", "numpy"):
-        raise PfbenchError(f"unknown backend {backend!r}; choose numba or numpy")
-    return {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
+        raise InputError("--runs and --steps must be >= 1")
+    check_backend(backend)
+    resampling = Scheme.parse(resampling).label
+    spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
             "runs": int(runs), "steps": int(steps), "seed": int(seed), "backend": backend,
             "resampling": resampling, "code": code_fingerprint(model)}
+    check_supported(spec)
+    return spec
+
+
+def check_supported(spec: dict) -> None:
+    """Raise the filter's own one-line error if the model cannot run one of the spec's methods.
+
+    Runs each method once on a 2-step simulation with the NumPy backend (milliseconds, nothing
+    to compile), so that an unsupported method (e.g. mpf on a model without a declared
+    linear-Gaussian substructure) fails before any sweep work or store is written.
+    """
+    from .. import models
+    from ..filters import run_filter
+
+    model = models.get(spec["model"], **spec["params"])
+    traj = model.simulate(2, seed=0)
+    for m in dict.fromkeys(c[0] for c in spec["configs"]):
+        run_filter(model, traj.y, traj.u, method=m, n_particles=2, backend="numpy",
+                   resampling=spec["resampling"], seed=0)
 
 
 def code_fingerprint(model: str) -> str:
@@ -112,23 +139,33 @@ def trajectory_seed(spec: dict, run: int) -> np.random.SeedSequence:
 
 def filter_seed(spec: dict, config, run: int) -> np.random.SeedSequence:
     m, n_p, n_f = config
-    return np.random.SeedSequence(spec["seed"], spawn_key=(1, _METHOD_KEY[m], int(n_p), int(n_f),
+    return np.random.SeedSequence(spec["seed"], spawn_key=(1, SEED_KEY[m], int(n_p), int(n_f),
                                                            int(run)))
 
 
 # --------------------------------------------------------------------------- filtering
-def run_multipdf(model, y, u, n_particles: int, n_filters: int, seed, backend: str = "numba",
-                 resampling: str = "systematic"):
-    """MultiPDF / bootstrap estimates, equal to ``pfbench.run_filter(..., method="multipdf")``
-    (same streams, same kernels) but without its per-call thread pool. Returns (est, sub_est)."""
-    from ..filters.particle import run_groups, streams
+def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: int, seed,
+                        backend: str = "numba", resampling: str = "systematic"):
+    """Estimates of a particle-family method (bootstrap, sir, sis, asir, multipdf), equal to
+    ``pfbench.run_filter(..., method=method)`` (same streams, kernels and default ESS threshold)
+    but without its per-call thread pool. Returns (est, sub_est)."""
+    from ..filters.inputs import ess_count
+    from ..filters.particle import run_groups, split_particles, streams
 
-    n_per = max(int(round(n_particles / n_filters)), 1)
-    out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method="multipdf", n_per=n_per,
-                        n_filters=n_filters, resampling=resampling, ess_threshold=0.5 * n_per,
-                        backend=backend, n_threads=1)
+    m = Method.parse(method)
+    n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
+    out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
+                        n_filters=n_filters, resampling=resampling,
+                        ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
     est = out["est"]
     return est.mean(axis=0), est
+
+
+def run_multipdf(model, y, u, n_particles: int, n_filters: int, seed, backend: str = "numba",
+                 resampling: str = "systematic"):
+    """MultiPDF (bootstrap for N_f = 1) estimates, see :func:`run_particle_family`."""
+    return run_particle_family(model, y, u, "multipdf", n_particles, n_filters, seed, backend,
+                               resampling)
 
 
 _CACHE: dict = {}
@@ -145,7 +182,7 @@ def _model(spec: dict):
 
 def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
     """Simulate run ``run`` and filter it with each configuration; one record per task."""
-    from ..filters.marginalized import run_mpf
+    from ..filters import run_filter
     from ..metrics import rmse
 
     model = _model(spec)
@@ -158,11 +195,12 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         m, n_p, n_f = cfg
         seed = filter_seed(spec, cfg, run)
         t0 = time.perf_counter()
-        if m == "mpf":
-            est = run_mpf(model, y, u, n_particles=n_p, backend=spec["backend"], seed=seed,
-                          resampling=spec["resampling"]).estimates
+        if Method.parse(m).family == "particle":
+            est, _ = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
+                                         spec["resampling"])
         else:
-            est, _ = run_multipdf(model, y, u, n_p, n_f, seed, spec["backend"], spec["resampling"])
+            est = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
+                             seed=seed, resampling=spec["resampling"]).estimates
         dt = time.perf_counter() - t0
         r = rmse(est, traj.x)
         out.append({"key": task_key(ci, run), "config": int(ci), "run": int(run), "method": m,
@@ -174,14 +212,5 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
 
 def warm_up(spec: dict) -> None:
     """Compile (or load from cache) the kernels a spec needs, on one tiny run."""
-    mini = dict(spec, steps=2)
-    methods = {c[0] for c in spec["configs"]}
-    cfgs = [i for i, c in enumerate(spec["configs"]) if c[0] in methods]
-    picked, seen = [], set()
-    for i in cfgs:
-        if spec["configs"][i][0] not in seen:
-            seen.add(spec["configs"][i][0])
-            picked.append(i)
-    mini["configs"] = [[c[0], 2 if c[0] != "mpf" else 2, 1] for c in
-                       (spec["configs"][i] for i in picked)]
+    mini = dict(spec, steps=2, configs=[[m, 2, 1] for m in dict.fromkeys(c[0] for c in spec["configs"])])
     run_chunk(mini, 0, range(len(mini["configs"])))

@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import PfbenchError
+from ..errors import InputError, PfbenchError
 from .core import n_tasks, run_chunk, task_key, warm_up
 from .store import Store, export_parquet
 
@@ -76,12 +76,12 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
               max_units: int | None = None) -> SweepReport:
     """Run (or resume) ``spec`` into the store ``out``; ``max_units`` stops early (testing)."""
     if executor not in ("local", "dask"):
-        raise PfbenchError(f"unknown executor {executor!r}; choose local or dask")
+        raise InputError(f"unknown executor {executor!r}; choose local or dask")
     if scheduler:
         executor = "dask"
     workers = int(workers or cores())
     if workers < 1:
-        raise PfbenchError("--workers must be >= 1")
+        raise InputError("--workers must be >= 1")
     store = Store.open(out, spec, overwrite=overwrite)
     total = n_tasks(spec)
     before = len(store.records)
@@ -172,14 +172,14 @@ def _run_dask(spec, units, workers, scheduler, done):
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:  # pragma: no cover
-        raise PfbenchError("the dask executor needs `pip install dask[distributed]`") from None
+        raise InputError("the dask executor needs `pip install dask[distributed]`") from None
     cluster = None
     try:
         if scheduler:
             try:
                 client = Client(scheduler, timeout="10s")
             except OSError as exc:
-                raise PfbenchError(f"cannot reach Dask scheduler {scheduler}: {exc}") from None
+                raise InputError(f"cannot reach Dask scheduler {scheduler}: {exc}") from None
         else:
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                    host="127.0.0.1", dashboard_address=None)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..errors import PfbenchError
+from ..errors import DataError, InputError
 from .core import spec_hash
 
 MAGIC = "pfbench_sweep_store"
@@ -64,10 +64,10 @@ class Store:
         if path.suffix == ".parquet" and not path.is_file() and journal_path(path).is_file():
             path = journal_path(path)
         if not path.is_file():
-            raise PfbenchError(f"sweep store {path} does not exist")
+            raise InputError(f"sweep store {path} does not exist")
         raw = path.read_bytes()
         if not raw:
-            raise PfbenchError(f"{path} is empty: not a pfbench sweep store")
+            raise DataError(f"{path} is empty: not a pfbench sweep store")
         lines = raw.split(b"\n")
         torn = lines[-1] != b""  # the file does not end in a newline
         body = lines[:-1]
@@ -76,12 +76,12 @@ class Store:
         except (ValueError, UnicodeDecodeError):
             header = None
         if not isinstance(header, dict) or header.get(MAGIC) != FORMAT or "spec" not in header:
-            raise PfbenchError(f"{path} is not a pfbench sweep store (no store header on line 1)")
+            raise DataError(f"{path} is not a pfbench sweep store (no store header on line 1)")
         spec = header["spec"]
         if header.get("spec_hash") != spec_hash(spec):
-            raise PfbenchError(f"{path}: corrupt store header (spec checksum mismatch)")
+            raise DataError(f"{path}: corrupt store header (spec checksum mismatch)")
         if torn and len(lines) == 1:
-            raise PfbenchError(f"{path}: corrupt store (header line is incomplete)")
+            raise DataError(f"{path}: corrupt store (header line is incomplete)")
         records, chunks = {}, []
         for no, ln in enumerate(body[1:], start=2):
             try:
@@ -92,8 +92,8 @@ class Store:
             except (ValueError, KeyError, TypeError, UnicodeDecodeError):
                 ok = False
             if not ok:
-                raise PfbenchError(f"{path}: corrupt store at line {no} (unreadable record or "
-                                   "checksum mismatch); move it away and re-run the sweep")
+                raise DataError(f"{path}: corrupt store at line {no} (unreadable record or "
+                                "checksum mismatch); move it away and re-run the sweep")
             if kind == "d":
                 records[payload["key"]] = payload
             else:
@@ -113,8 +113,8 @@ class Store:
             st = cls.read(path, repair=True)
             if spec_hash(st.spec) != spec_hash(spec):
                 diff = sorted(k for k in set(spec) | set(st.spec) if spec.get(k) != st.spec.get(k))
-                raise PfbenchError(f"{path} holds a different sweep (differs in: {', '.join(diff)}); "
-                                   "use another --out or --overwrite")
+                raise InputError(f"{path} holds a different sweep (differs in: {', '.join(diff)}); "
+                                 "use another --out or --overwrite")
             return st
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".tmp")
@@ -176,10 +176,10 @@ def load_frame(path) -> tuple[pd.DataFrame, dict, list]:
         try:
             table = pq.read_table(path)
         except Exception as exc:  # noqa: BLE001 - pyarrow raises several types
-            raise PfbenchError(f"{path} is not a readable Parquet file: {exc}") from None
+            raise DataError(f"{path} is not a readable Parquet file: {exc}") from None
         meta = (table.schema.metadata or {}).get(MAGIC.encode())
         if meta is None:
-            raise PfbenchError(f"{path} is not a pfbench sweep store (no sweep metadata)")
+            raise DataError(f"{path} is not a pfbench sweep store (no sweep metadata)")
         info = json.loads(meta)
         return table.to_pandas(), info["spec"], info.get("chunks", [])
     st = Store.read(path)

@@ -4,7 +4,19 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..filters.methods import Method
 from ..metrics import mean_interval
+
+#: legend labels; other methods show their name
+_LABEL = {"bootstrap": "BF", "mpf": "MPF"}
+#: line styles of the single-filter references (MultiPDF lines use the colour cycle)
+_STYLE = {"mpf": dict(ls="--", color="k"), "bootstrap": dict(ls=":", color="gray"),
+          "kalman": dict(ls="-.", color="tab:brown")}
+
+
+def _order(method: str) -> int:
+    """Table order of :class:`Method` (bootstrap first, multipdf before mpf, ...)."""
+    return int(Method.parse(method))
 
 
 def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFrame:
@@ -22,8 +34,7 @@ def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFra
                      "armse_lo": lo, "armse_hi": hi,
                      "runs_per_s": len(g) / el if el > 0 else float("nan")})
     out = pd.DataFrame(rows)
-    order = {"bootstrap": 0, "multipdf": 1, "mpf": 2}
-    out["_o"] = out["method"].map(order)
+    out["_o"] = out["method"].map(_order)
     return out.sort_values(["_o", "n_filters", "n_particles"]).drop(columns="_o").reset_index(drop=True)
 
 
@@ -36,7 +47,7 @@ def throughput(chunks: list, n_records: int) -> dict:
 
 def plot_summary(summary: pd.DataFrame, title: str = "", ax=None):
     """aRMSE vs N_p, one line per N_f (MultiPDF; N_f = 1 is the bootstrap filter), 95 % bands;
-    bootstrap and MPF rows as extra lines. Returns the figure."""
+    every other method (bootstrap, MPF, SIR, ...) as an extra line. Returns the figure."""
     import matplotlib.pyplot as plt
 
     if ax is None:
@@ -45,12 +56,12 @@ def plot_summary(summary: pd.DataFrame, title: str = "", ax=None):
         fig = ax.figure
     groups = []
     for (m, n_f), g in summary.groupby(["method", "n_filters"], sort=False):
-        label = f"N_f = {n_f}" if m == "multipdf" else ("BF" if m == "bootstrap" else "MPF")
+        label = f"N_f = {n_f}" if m == "multipdf" else _LABEL.get(m, m)
         groups.append((m, n_f, label, g.sort_values("n_particles")))
-    groups.sort(key=lambda t: ({"multipdf": 0, "bootstrap": 1, "mpf": 2}[t[0]], t[1]))
+    groups.sort(key=lambda t: (t[0] != "multipdf", _order(t[0]), t[1]))
     for m, n_f, label, g in groups:
         x = g["n_particles"].to_numpy()
-        style = {"mpf": dict(ls="--", color="k"), "bootstrap": dict(ls=":", color="gray")}.get(m, {})
+        style = _STYLE.get(m, {})
         line, = ax.plot(x, g["armse_mean"], marker="o", ms=3, label=label, **style)
         lo, hi = g["armse_lo"].to_numpy(), g["armse_hi"].to_numpy()
         if np.isfinite(lo).all():

@@ -40,6 +40,10 @@ TEMPS = {"A": 22.0, "B": 22.5, "C": 23.0}
 TABLE_A2 = {100: "3-1", 500: "2-1", 1000: "-1"}
 
 
+#: the --option keys every chamber recipe reads (all of them also take --data log.csv)
+OPTIONS = {"pf_seeds": (int, "PF seeds averaged per experiment (quick 3, full 20)")}
+
+
 def _n_seeds(ctx) -> int:
     return ctx.option("pf_seeds", 20 if ctx.full else 3, int)
 
@@ -201,7 +205,7 @@ def _heating_cooling_fig(ctx, fig: str) -> None:
 
 
 @recipe("embedded:fig6", aliases=("fig6",), title="Heating/cooling, N_p = 1000 (Fig. 6, test B-1)",
-        quick_cost="~20 s", full_cost="~1 min")
+        quick_cost="~20 s", full_cost="~1 min", options=OPTIONS, reads_data=True)
 def fig6(ctx):
     _heating_cooling_fig(ctx, "fig6")
     if not ctx.data:
@@ -211,19 +215,19 @@ def fig6(ctx):
 
 
 @recipe("embedded:fig7", aliases=("fig7",), title="Heating/cooling, N_p = 500 (Fig. 7, test B2-1)",
-        quick_cost="~20 s", full_cost="~1 min")
+        quick_cost="~20 s", full_cost="~1 min", options=OPTIONS, reads_data=True)
 def fig7(ctx):
     _heating_cooling_fig(ctx, "fig7")
 
 
 @recipe("embedded:fig8", aliases=("fig8",), title="Heating/cooling, N_p = 100 (Fig. 8, test B3-1)",
-        quick_cost="~20 s", full_cost="~1 min")
+        quick_cost="~20 s", full_cost="~1 min", options=OPTIONS, reads_data=True)
 def fig8(ctx):
     _heating_cooling_fig(ctx, "fig8")
 
 
 @recipe("embedded:fig9", aliases=("fig9",), title="Estimation errors eps(k) of B1, B2-1, B3-1 (Fig. 9)",
-        quick_cost="~30 s", full_cost="~2 min")
+        quick_cost="~30 s", full_cost="~2 min", options=OPTIONS, reads_data=True)
 def fig9(ctx):
     import matplotlib.pyplot as plt
 
@@ -262,7 +266,7 @@ def fig9(ctx):
 
 
 @recipe("embedded:fig10", aliases=("fig10",), title="Heating/normal two-position control, N_p = 1000 (Fig. 10)",
-        quick_cost="~20 s", full_cost="~1 min")
+        quick_cost="~20 s", full_cost="~1 min", options=OPTIONS, reads_data=True)
 def fig10(ctx):
     cols = _experiment(ctx, "heating_normal", "HN", 21.5)
     mean, est = _metrics(ctx, cols, 1000)
@@ -356,7 +360,7 @@ def _grid_claims(ctx, df: pd.DataFrame) -> None:
 
 
 @recipe("embedded:tableA1", aliases=("tableA1",), title="Appendix A Table A1: σv²/σn² grid, N_p = 1000",
-        quick_cost="~1 min", full_cost="~5 min")
+        quick_cost="~1 min", full_cost="~5 min", options=OPTIONS, reads_data=True)
 def tableA1(ctx):
     df, _ = _grid(ctx)
     out = df[df.table == "A1"].reset_index(drop=True)
@@ -365,7 +369,7 @@ def tableA1(ctx):
 
 
 @recipe("embedded:tableA2", aliases=("tableA2",), title="Appendix A Table A2: N_p = 100/500/1000 at σv²=0.010, σn²=0.005",
-        quick_cost="~1 min", full_cost="~5 min")
+        quick_cost="~1 min", full_cost="~5 min", options=OPTIONS, reads_data=True)
 def tableA2(ctx):
     df, _ = _grid(ctx)
     out = df[(df.table == "A2") | df.test.isin(["A-1", "B-1", "C-1"])].sort_values(["set_temp", "n_particles"])
@@ -378,7 +382,7 @@ def tableA2(ctx):
 
 
 @recipe("embedded:figA1", aliases=("figA1",), title="Appendix A Fig. A1: one panel per test",
-        quick_cost="~1 min", full_cost="~5 min")
+        quick_cost="~1 min", full_cost="~5 min", options=OPTIONS, reads_data=True)
 def figA1(ctx):
     import matplotlib.pyplot as plt
 

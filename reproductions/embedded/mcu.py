@@ -17,7 +17,8 @@ FULL_CONFIGS = {"float": ((20, 100), (40, 100), (20, 200), (40, 200)),
 
 
 @recipe("embedded:mcu", aliases=("mcu",), title="Table 2 from emulated Cortex-M4 instruction counts",
-        quick_cost="~15 s", full_cost="~1 min", needs=("mcu-tools",))
+        quick_cost="~15 s", full_cost="~1 min", needs=("mcu-tools",),
+        options={"seed": (int, "srand() seed of the emulated C filter (default 1)")})
 def mcu(ctx):
     from pfbench.mcu import emulate as E
 

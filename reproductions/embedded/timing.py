@@ -77,7 +77,8 @@ def _host_times(ctx, configs):
 
 
 @recipe("embedded:fig5", aliases=("fig5",), title="Platform timing: host vs STM32F4 model (Fig. 5)",
-        quick_cost="~30 s", full_cost="~2 min")
+        quick_cost="~30 s", full_cost="~2 min",
+        options={"repeats": (int, "timed runs per configuration (quick numba 5 / numpy 3, full 21 / 7)")})
 def fig5(ctx):
     import matplotlib.pyplot as plt
 
@@ -227,7 +228,10 @@ def table2(ctx):
 
 
 @recipe("embedded:table3", aliases=("table3",), title="Energy per task, host vs STM32F4 (Table 3)",
-        quick_cost="~20 s", full_cost="~1 min")
+        quick_cost="~20 s", full_cost="~1 min",
+        options={"repeats": (int, "timed runs per configuration (quick numba 5 / numpy 3, full 21 / 7)"),
+                 "host_power_w": (float, "host power model in W when RAPL is unreadable (default 10)"),
+                 "board_power_w": (float, "STM32F4 board power in W (default 1.39, Table 3)")})
 def table3(ctx):
     m, n = 1000, 1000
     host_power = _opt_float(ctx, "host_power_w", DEFAULT_HOST_POWER_W)

@@ -11,8 +11,13 @@ from pfbench.errors import PfbenchError
 from pfbench.sweep.store import Store, journal_path
 
 
+#: the --option keys that :func:`sweep` and its helpers read (declare them on every recipe using it)
+OPTIONS = {"runs": (int, "Monte Carlo runs per configuration (see the recipe's quick/full counts)"),
+           "workers": (int, "worker processes of the sweep (default: all cores)")}
+
+
 def workers(ctx) -> int:
-    return int(ctx.options.get("workers", cores()))
+    return ctx.option("workers", cores(), int)
 
 
 def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_quick: int,
@@ -95,4 +100,4 @@ def significance(summ, nf_a, nf_b):
     return hits / max(1, len(nps))
 
 
-__all__ = ["sweep", "claims", "plot", "nf_table", "full_time_estimate", "significance", "np"]
+__all__ = ["OPTIONS", "sweep", "claims", "plot", "nf_table", "full_time_estimate", "significance", "np"]

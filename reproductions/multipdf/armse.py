@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pfbench.recipes import recipe
 
-from ._common import claims, full_time_estimate, plot, significance, sweep
+from ._common import OPTIONS, claims, full_time_estimate, plot, significance, sweep
 
 NP = (100, 200, 500, 1000)
 NF = (1, 2, 3, 5, 10)
@@ -74,4 +74,4 @@ FULL = {"fig3": "~1 min", "fig4": "~0.2 min", "fig5": "~1.5 min", "fig6": "~2 mi
 for _row in FIGS:
     _n = _row[0]
     recipe(f"multipdf:{_n}", title=f"aRMSE vs N_p for {_row[8]} ([MultiPDF] Fig. {_n[3:]})",
-           quick_cost=QUICK[_n], full_cost=FULL[_n])(_make(*_row))
+           quick_cost=QUICK[_n], full_cost=FULL[_n], options=OPTIONS)(_make(*_row))

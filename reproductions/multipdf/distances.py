@@ -33,7 +33,7 @@ def _finish(ctx):
 
 
 @recipe("multipdf:table6", title="Distance statistics on Ob4 (Table 6)", quick_cost="~5 s",
-        full_cost="~20 s")
+        full_cost="~20 s", options={"steps": (int, "time steps M (quick 20000, full 100000)")})
 def table6(ctx):
     d = _distances(ctx)
     df = pd.DataFrame([{"filter": k, "mean_d": float(v.mean()), "std_d": float(v.std(ddof=1))}
@@ -52,7 +52,8 @@ def table6(ctx):
 
 
 @recipe("multipdf:table7", title="Share of steps MultiPDF's d(k) is smaller (Table 7)",
-        quick_cost="~5 s", full_cost="~20 s")
+        quick_cost="~5 s", full_cost="~20 s",
+        options={"steps": (int, "time steps M (quick 20000, full 100000)")})
 def table7(ctx):
     d = _distances(ctx)
     mp = d["MultiPDF"]

@@ -5,7 +5,7 @@ import pandas as pd
 
 from pfbench.recipes import recipe
 
-from ._common import sweep
+from ._common import OPTIONS, sweep
 
 OBJECTS = [("Ob2", "ob2", {}), ("Ob3 v1", "ob3", {"version": 1}), ("Ob3 v2", "ob3", {"version": 2}),
            ("Ob3 v3", "ob3", {"version": 3}), ("Ob3 v4", "ob3", {"version": 4}),
@@ -13,7 +13,7 @@ OBJECTS = [("Ob2", "ob2", {}), ("Ob3 v1", "ob3", {"version": 1}), ("Ob3 v2", "ob
 
 
 @recipe("multipdf:table4", aliases=("mpf-table",), title="MPF aRMSE, Ob2 and Ob3 v1-v5 (Table 4)",
-        quick_cost="~30 s", full_cost="~10 min")
+        quick_cost="~30 s", full_cost="~10 min", options=OPTIONS)
 def table4(ctx):
     rows = []
     for label, model, params in OBJECTS:

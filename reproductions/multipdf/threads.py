@@ -61,12 +61,14 @@ def _timing(ctx, n_p: int, name: str):
 
 
 @recipe("multipdf:fig12", title="Time vs threads, N_p = 1200 (Fig. 12)", quick_cost="~10 s",
-        full_cost="~30 s")
+        full_cost="~30 s", options={"repeats": (int, "timed repetitions (quick 5, full 12)"),
+                                    "steps": (int, "time steps M (default 2000)")})
 def fig12(ctx):
     _timing(ctx, 1200, "fig12")
 
 
 @recipe("multipdf:fig13", title="Time vs threads, N_p = 1500 (Fig. 13)", quick_cost="~10 s",
-        full_cost="~30 s")
+        full_cost="~30 s", options={"repeats": (int, "timed repetitions (quick 5, full 12)"),
+                                    "steps": (int, "time steps M (default 2000)")})
 def fig13(ctx):
     _timing(ctx, 1500, "fig13")

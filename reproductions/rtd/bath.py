@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from pfbench.plants import rtd
-from pfbench.errors import PfbenchError
+from pfbench.errors import DataError, InputError, PfbenchError
 from pfbench.recipes import recipe
 
 
@@ -18,6 +18,16 @@ def noise_var(y) -> float:
 
 
 _CACHE: dict = {}
+
+#: the --option keys :func:`run_bath` reads (the simulation's four only without --data)
+OPTIONS = {"R_meas": (float, "simulated measurement-noise variance (default 0.05)"),
+           "T_low": (float, "simulated bath temperature before the step up, degC (default 25)"),
+           "T_high": (float, "simulated bath temperature after the step up, degC (default 38)"),
+           "t_hold": (float, "simulated hold time of each level, s (default 60)"),
+           "gain": (float, "static gain of the RC model (default 1.0)"),
+           "ratio_a": (float, "Q/R of predictor a (default 1e4)"),
+           "ratio_b": (float, "Q/R of predictor b (default 0.2)"),
+           "ratio_kf": (float, "Q/R of the KF (default 1e-3)")}
 
 
 def run_bath(ctx) -> dict:
@@ -35,19 +45,20 @@ def run_bath(ctx) -> dict:
                                             T_high=ctx.option("T_high", 38.0, float), t_hold=ctx.option("t_hold", 60.0, float),
                                             seed=ctx.seed)
         source = "simulated (eq. 52 sensor, ZOH Ts=0.1 s)"
+    bad = DataError if ctx.data is not None else InputError
     ch = np.nonzero(np.diff(u) != 0)[0] + 1
     if ch.size < 2:
-        raise PfbenchError("the bath run needs a step up followed by a step down (u must change twice)")
+        raise bad("the bath run needs a step up followed by a step down (u must change twice)")
     i_up, i_dn = int(ch[0]), int(ch[-1])
     lo, hi = float(u[0]), float(u[i_up])
     if not hi > lo:
-        raise PfbenchError("the first step of the bath run must go up")
+        raise bad("the first step of the bath run must go up")
     up = np.zeros(t.size, bool); up[i_up:i_dn] = True
     dn = np.zeros(t.size, bool); dn[i_dn:] = True
     try:
         fit = rtd.fit_rc_step(t[up], y[up], y_final=hi, y_start=lo, frac=(0.1, 0.9))
     except PfbenchError as exc:
-        raise PfbenchError(f"RC fit of the step up failed: {exc}") from None
+        raise bad(f"RC fit of the step up failed: {exc}") from None
     gain = ctx.option("gain", 1.0, float)
     rc = rtd.rc_model(fit.tau, Ts=Ts, gain=gain)
     R_hat = max(noise_var(y), 1e-12)
@@ -87,7 +98,7 @@ def _common_compare(ctx, r, tag):
 
 
 @recipe("rtd:fig6", title="Thermal-bath step up/down: KF and two predictors (Fig. 6)", quick_cost="~3 s",
-        full_cost="~3 s")
+        full_cost="~3 s", options=OPTIONS, reads_data=True)
 def fig6(ctx):
     import matplotlib.pyplot as plt
 
@@ -114,7 +125,7 @@ def fig6(ctx):
 
 
 @recipe("rtd:fig7", title="Boundary layer: two first-order predictors enveloping the response (Fig. 7)",
-        quick_cost="~3 s", full_cost="~3 s")
+        quick_cost="~3 s", full_cost="~3 s", options=OPTIONS, reads_data=True)
 def fig7(ctx):
     import matplotlib.pyplot as plt
     import pandas as pd

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from pfbench.plants import rtd
-from pfbench.errors import PfbenchError
+from pfbench.errors import InputError
 from pfbench.recipes import recipe
 
 
@@ -16,7 +16,11 @@ def steady_time(t, errcov, rel=0.01):
 
 
 @recipe("rtd:fig5", title="Time-varying KF on the simulated RTD (Fig. 5)", quick_cost="~5 s",
-        full_cost="~30 s")
+        full_cost="~30 s",
+        options={"Q": (float, "process-noise variance of the KF (default 2.3)"),
+                 "R": (float, "measurement-noise variance (default 1.0)"),
+                 "n": (int, "time steps (default 600)"),
+                 "model": (str, "sensor model: eq52 (default) or eq54")})
 def fig5(ctx):
     import matplotlib.pyplot as plt
     import pandas as pd
@@ -25,7 +29,7 @@ def fig5(ctx):
     n = ctx.option("n", 600, int)
     which = str(ctx.options.get("model", "eq52"))
     if which not in ("eq52", "eq54"):
-        raise PfbenchError("option model must be eq52 or eq54")
+        raise InputError("option model must be eq52 or eq54")
     model = rtd.identified_model() if which == "eq52" else rtd.eq54_model()
     d = rtd.simulate_fig5(n=n, Qu=Qu, R=R, seed=ctx.seed, model=model)
     t = d["t"]
@@ -53,7 +57,7 @@ def fig5(ctx):
     ts = steady_time(t, d["errcov"])
     late = t >= 45.0
     if not late.any():
-        raise PfbenchError("option n too small: the run must last at least 45 s")
+        raise InputError("option n too small: the run must last at least 45 s")
     k45 = int(np.argmax(late))
     ctx.compare("C P C^T steady (within 1 %) after", round(ts, 2), 8.0, unit="s",
                 note="chapter: 'predict the state after approximately 8 seconds'")

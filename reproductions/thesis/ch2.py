@@ -3,10 +3,8 @@ bootstrap with an outlier (Fig. 2.4 + MSE table), on the example of §2.7.1
 (:mod:`pfbench.models.thesis_example`; the observation equation was lost in the extraction,
 we use y_t = x_t + v_t).
 
-Estimates, variances, N_eff and MSE come from :func:`pfbench.run_filter`. The particle clouds
-of Figs. 2.2-2.3 need every particle and weight, which ``run_filter`` does not return, so they
-come from a 15-line NumPy SIS/SIR loop over the same model functions and resampling scheme
-(:func:`_particle_history`); its N_eff path is checked against ``run_filter``'s.
+Estimates, variances, N_eff, MSE and the particle clouds of Figs. 2.2-2.3 (every particle and
+weight, ``store_particles=True``) come from :func:`pfbench.run_filter`.
 """
 from __future__ import annotations
 
@@ -19,28 +17,9 @@ from pfbench.models import get
 from pfbench.recipes import recipe
 
 
-def _particle_history(model, y, n, rng, ess_threshold=None):
-    """SIS (ess_threshold None) or SIR with multinomial resampling; returns particles
-    (M, n), normalised weights (M, n), resampled (M,) and ESS (M,)."""
-    p = model.params()
-    x = model.initial(rng, n, p)
-    lw = np.full(n, -np.log(n))
-    M = y.shape[0]
-    X, W, R, E = np.empty((M, n)), np.empty((M, n)), np.zeros(M, bool), np.empty(M)
-    u = np.zeros(0)
-    for t in range(M):
-        x = model.transition(x, u, t, rng.standard_normal((n, 1)), p)
-        a = lw + model.log_likelihood(y[t], x, u, t, p)
-        w = np.exp(a - a.max())
-        w /= w.sum()
-        E[t] = 1.0 / np.sum(w * w)
-        X[t], W[t] = x[:, 0], w
-        lw = np.log(np.maximum(w, 1e-300))
-        if ess_threshold is not None and E[t] < ess_threshold:
-            x = x[resampling.multinomial(w, rng)]
-            lw = np.full(n, -np.log(n))
-            R[t] = True
-    return X, W, R, E
+def _history(res):
+    """Particles (M, n), normalised weights (M, n) and resampling flags (M,) of a one-filter run."""
+    return res.extras["particles"][0, :, :, 0], res.extras["weights"][0], res.extras["resampled"][0]
 
 
 def _cloud_figure(title, tr, X, W, R):
@@ -65,18 +44,18 @@ def _cloud_figure(title, tr, X, W, R):
 
 
 @recipe("thesis:fig2.2", title="SIS degeneracy, 50 particles, horizon 50 (thesis Fig. 2.2)",
-        quick_cost="~5 s", full_cost="~5 s")
+        quick_cost="~5 s", full_cost="~5 s",
+        options={"particles": (int, "particles (default 50)"), "steps": (int, "time steps (default 50)")})
 def fig2_2(ctx):
     n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
     model = get("thesis_example")
     tr = model.simulate(M, seed=ctx.seed)
-    X, W, R, E = _particle_history(model, tr.y, n, np.random.default_rng(ctx.seed + 1))
     res = pfbench.run_filter(model, tr.y, method="sis", n_particles=n, backend=ctx.backend,
-                             seed=ctx.seed + 1, common_random_numbers=True)
+                             seed=ctx.seed + 1, common_random_numbers=True, store_particles=True)
+    X, W, R = _history(res)
     ctx.write_figure("fig2.2", _cloud_figure("SIS", tr, X, W, R))
     ctx.write_table("fig2.2", pd.DataFrame({"t": np.arange(1, M + 1), "x_true": tr.x[:, 0],
-                                            "estimate": res.estimates[:, 0], "ess": res.ess,
-                                            "ess_history_loop": E}))
+                                            "estimate": res.estimates[:, 0], "ess": res.ess}))
     small = float(np.mean(W[-1] < 1e-3))
     ctx.compare("N_eff at the last step (SIS, run_filter)", ours=float(res.ess[-1]),
                 paper="majority of weights tend to zero", unit="particles")
@@ -86,16 +65,18 @@ def fig2_2(ctx):
 
 
 @recipe("thesis:fig2.3", title="SIR, multinomial resampling, N_thres = 25 (thesis Fig. 2.3)",
-        quick_cost="~5 s", full_cost="~5 s")
+        quick_cost="~5 s", full_cost="~5 s",
+        options={"particles": (int, "particles (default 50)"), "steps": (int, "time steps (default 50)"),
+                 "threshold": (float, "resample when N_eff < this many particles (default 25)")})
 def fig2_3(ctx):
     n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
     thr = ctx.option("threshold", 25.0, float)
     model = get("thesis_example")
     tr = model.simulate(M, seed=ctx.seed)
-    X, W, R, E = _particle_history(model, tr.y, n, np.random.default_rng(ctx.seed + 1), thr)
     res = pfbench.run_filter(model, tr.y, method="sir", n_particles=n, resampling="multinomial",
-                             ess_threshold=thr, backend=ctx.backend, seed=ctx.seed + 1,
-                             common_random_numbers=True)
+                             ess_threshold=thr / n, backend=ctx.backend, seed=ctx.seed + 1,
+                             common_random_numbers=True, store_particles=True)
+    X, W, R = _history(res)
     sis = pfbench.run_filter(model, tr.y, method="sis", n_particles=n, backend=ctx.backend,
                              seed=ctx.seed + 1, common_random_numbers=True)
     ctx.write_figure("fig2.3", _cloud_figure("SIR", tr, X, W, R))
@@ -125,7 +106,9 @@ def _mse_runs(n_runs, n, M, backend, seed, progress):
 
 
 @recipe("thesis:fig2.4", title="ASIR vs bootstrap with an outlier w_5 = 0.5 (thesis Fig. 2.4 + MSE)",
-        quick_cost="~20 s", full_cost="~40 s")
+        quick_cost="~20 s", full_cost="~40 s",
+        options={"particles": (int, "particles (default 50)"), "steps": (int, "time steps (default 20)"),
+                 "runs": (int, "Monte Carlo runs of the MSE table (quick 300, full 1000)")})
 def fig2_4(ctx):
     import matplotlib.pyplot as plt
 

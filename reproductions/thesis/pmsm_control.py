@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, Scenario, run_batch, run_once
-from pfbench.filters.optimal_proposal import Q_THETA_FILTER, step_time_us
+from pfbench.models.pmsm import Q_THETA_FILTER
+from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
 
 
@@ -52,13 +53,16 @@ def _table(results, labels, key):
 
 
 @recipe("thesis:fig4.7", title="Tracking loss for two particle counts, PI on the maximum (thesis Fig. 4.7)",
-        quick_cost="~30 s", full_cost="~3 min")
+        quick_cost="~30 s", full_cost="~3 min",
+        options={"runs": (int, "closed-loop runs per particle count (quick 100, full 1000)"),
+                 "particles": (str, "comma-separated particle counts (default 30,15)"),
+                 "q_theta": (float, "theta process-noise variance of the filter's model")})
 def fig4_7(ctx):
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     ns = [int(v) for v in str(ctx.options.get("particles", "30,15")).split(",")]
     results = []
     for n in ns:
-        cfg = LoopConfig(n_particles=n, ess_threshold=n / 3.0, point="max", backend=ctx.backend,
+        cfg = LoopConfig(n_particles=n, ess_threshold=1.0 / 3.0, point="max", backend=ctx.backend,
                          q_theta_filter=ctx.option("q_theta", Q_THETA_FILTER, float))
         _warm(cfg)
         results.append(run_batch(cfg, n_runs, seed=ctx.seed, progress=ctx.progress))
@@ -85,7 +89,11 @@ def fig4_7(ctx):
 
 
 @recipe("thesis:fig4.9", title="Tracking loss: mean vs random sample vs maximum (thesis Fig. 4.9)",
-        quick_cost="~1 min", full_cost="~5 min")
+        quick_cost="~1 min", full_cost="~5 min",
+        options={"runs": (int, "closed-loop runs per point estimate (quick 100, full 1000)"),
+                 "particles": (int, "particles (default 60)"),
+                 "hold_s": (float, "hold time of the speed reference in s (default 0.4)"),
+                 "q_theta": (float, "theta process-noise variance of the filter's model")})
 def fig4_9(ctx):
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     n = ctx.option("particles", 60, int)
@@ -93,7 +101,7 @@ def fig4_9(ctx):
     modes = ("mean", "sample", "max")
     results = []
     for pt in modes:
-        cfg = LoopConfig(n_particles=n, ess_threshold=12.0, point=pt, backend=ctx.backend,
+        cfg = LoopConfig(n_particles=n, ess_threshold=min(1.0, 12.0 / n), point=pt, backend=ctx.backend,
                          scenario=Scenario(hold_s=hold),
                          q_theta_filter=ctx.option("q_theta", Q_THETA_FILTER, float))
         _warm(cfg)

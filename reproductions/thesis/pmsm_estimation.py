@@ -2,9 +2,9 @@
 estimation quality vs the prior's theta offset (Fig. 4.6).
 
 Scenario (§4.4.1): omega_ref ramps 0 -> 10 rad/s in 0.1 s and holds 0.1 s (1600 steps of
-125 us), x^(0) from the prior, PI control on the posterior mean (§4.4.2). SMC: optimal
-proposal, 60 particles, threshold 12, deterministic residual resampling
-(:mod:`pfbench.filters.optimal_proposal`); EKF: Jacobian eq. 4.26.
+125 us), x^(0) from the prior, PI control on the posterior mean (§4.4.2). SMC: the reduced PMSM
+model's optimal proposal + the generic guided filter, 60 particles, threshold 12, deterministic
+residual resampling (:mod:`pfbench.plants.pmsm_control.smc`); EKF: Jacobian eq. 4.26.
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, run_batch, run_once
-from pfbench.filters.optimal_proposal import step_time_us
+from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
 
 DT = 125e-6
@@ -40,7 +40,7 @@ def _common(ctx):
 
 
 @recipe("thesis:fig4.1", title="Currents in the start-up, EKF vs SMC (thesis Fig. 4.1)",
-        quick_cost="~10 s", full_cost="~10 s")
+        quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
 def fig4_1(ctx):
     import matplotlib.pyplot as plt
 
@@ -77,7 +77,7 @@ def _convergence_time(o, tol=0.3):
 
 
 @recipe("thesis:fig4.2", title="omega and theta, EKF vs SMC with bounds (thesis Fig. 4.2)",
-        quick_cost="~10 s", full_cost="~10 s")
+        quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
 def fig4_2(ctx):
     import matplotlib.pyplot as plt
 
@@ -127,7 +127,9 @@ def fig4_2(ctx):
 
 
 @recipe("thesis:fig4.3", title="SMC posterior of omega and theta over time (thesis Fig. 4.3)",
-        quick_cost="~10 s", full_cost="~10 s")
+        quick_cost="~10 s", full_cost="~10 s",
+        options={"run": (int, "which realisation (default 0)"),
+                 "t_end": (float, "end of the plotted window in s (default 0.1)")})
 def fig4_3(ctx):
     import matplotlib.pyplot as plt
 
@@ -167,7 +169,7 @@ def fig4_3(ctx):
 
 
 @recipe("thesis:fig4.4", title="SMC joint density of (omega, theta) at listed times (thesis Fig. 4.4)",
-        quick_cost="~10 s", full_cost="~10 s")
+        quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
 def fig4_4(ctx):
     import matplotlib.pyplot as plt
 
@@ -202,7 +204,10 @@ def fig4_4(ctx):
 
 
 @recipe("thesis:fig4.6", title="Estimation quality vs the prior's theta offset, EKF vs SMC (thesis Fig. 4.6)",
-        quick_cost="~40 s", full_cost="~2 min")
+        quick_cost="~40 s", full_cost="~2 min",
+        options={"runs": (int, "runs per offset and estimator (default 10)"),
+                 "points": (int, "theta offsets in [0, pi] (quick 5, full 13)"),
+                 "prior_sd": (float, "prior standard deviation of theta (default 1.0)")})
 def fig4_6(ctx):
     import matplotlib.pyplot as plt
 

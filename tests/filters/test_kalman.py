@@ -1,4 +1,5 @@
-"""Tests of pfbench.kalman: KF vs filterpy and brute force, EKF, DARE vs scipy, scalar closed forms."""
+"""Tests of pfbench.kalman: KF vs filterpy and brute force, EKF, the [RTD] loops, FilterResult
+contents. The DARE is tested in test_dare.py."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +8,8 @@ import scipy.linalg as sl
 from scipy.stats import multivariate_normal
 
 from pfbench import kalman
-from pfbench.errors import PfbenchError
+from pfbench.errors import InputError, PfbenchError, UnsupportedError
+from pfbench.filters.result import FilterResult
 from pfbench.models.linear_gaussian import LinearGaussian
 
 
@@ -43,11 +45,14 @@ def test_kf_matches_filterpy(n_x, n_y, n_u):
         kf.B = B
     for t in range(M):
         kf.predict(u=u[t].reshape(-1, 1) if n_u else None)
-        np.testing.assert_allclose(res.pred_means[t], kf.x.ravel(), rtol=0, atol=1e-10)
-        np.testing.assert_allclose(res.pred_covs[t], kf.P, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.extras["pred_means"][t], kf.x.ravel(), rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.extras["pred_covs"][t], kf.P, rtol=0, atol=1e-10)
         kf.update(y[t].reshape(-1, 1))
-        np.testing.assert_allclose(res.means[t], kf.x.ravel(), rtol=0, atol=1e-10)
-        np.testing.assert_allclose(res.covs[t], kf.P, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.estimates[t], kf.x.ravel(), rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.covariances[t], kf.P, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.extras["gains"][t], kf.K, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.extras["innovations"][t], kf.y.ravel(), rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.extras["innovation_covs"][t], kf.S, rtol=0, atol=1e-10)
         np.testing.assert_allclose(res.loglik_increments[t], kf.log_likelihood, rtol=1e-10, atol=1e-10)
 
 
@@ -92,25 +97,38 @@ def test_filter_model_uses_linear_gaussian_convention():
     tr = model.simulate(40, seed=5)
     res = kalman.filter_model(model, tr.y, tr.u)
     ref = kalman.kalman_filter(A, C, Q, R, x0, P0, tr.y, B=B, D=D, u=tr.u)
-    np.testing.assert_array_equal(res.means, ref.means)
+    np.testing.assert_array_equal(res.estimates, ref.estimates)
     assert res.loglik == ref.loglik
-    with pytest.raises(PfbenchError):
+    with pytest.raises(InputError):
         kalman.filter_model(model, tr.y)
+    with pytest.raises(UnsupportedError):
+        kalman.filter_model(object(), tr.y)
     # the simulated trajectory must be consistent with the filter: normalised innovations ~ N(0, 1)
     model2 = LinearGaussian(A=A, C=C, Q=Q, R=R, x0=x0, P0=P0)
     tr2 = model2.simulate(2000, seed=11)
     r2 = kalman.filter_model(model2, tr2.y)
-    z = np.concatenate([np.linalg.solve(np.linalg.cholesky(S), e) for S, e in zip(r2.innovation_covs, r2.innovations)])
+    ex = r2.extras
+    z = np.concatenate([np.linalg.solve(np.linalg.cholesky(S), e) for S, e in zip(ex["innovation_covs"], ex["innovations"])])
     # mean of 4000 N(0,1): |mean| < 4/sqrt(4000); variance within 4 sd of chi2 (sd ~ sqrt(2/4000))
     assert abs(z.mean()) < 4 / np.sqrt(z.size)
     assert abs(z.var() - 1.0) < 4 * np.sqrt(2.0 / z.size)
 
 
 def test_kf_bad_shapes():
-    with pytest.raises(PfbenchError):
-        kalman.kalman_filter(np.eye(2), np.ones((1, 3)), np.eye(2), np.eye(1), np.zeros(2), np.eye(2), np.zeros((5, 1)))
-    with pytest.raises(PfbenchError):
-        kalman.kalman_filter(np.eye(2), np.ones((1, 2)), np.eye(2), np.eye(1), np.zeros(2), np.eye(2), np.zeros((5, 2)))
+    args = (np.eye(2), np.ones((1, 2)), np.eye(2), np.eye(1), np.zeros(2), np.eye(2))
+    with pytest.raises(InputError, match="shapes"):
+        kalman.kalman_filter(np.eye(2), np.ones((1, 3)), *args[2:], np.zeros((5, 1)))
+    with pytest.raises(InputError, match="y must have shape"):
+        kalman.kalman_filter(*args, np.zeros((5, 2)))
+    # nothing is reshaped or transposed silently: B given as a row, y flat with n_y = 2, B without u
+    with pytest.raises(InputError, match="B must have shape"):
+        kalman.kalman_filter(*args, np.zeros((5, 1)), B=np.ones((1, 2)), u=np.zeros((5, 2)))
+    with pytest.raises(InputError, match="y must have shape"):
+        kalman.kalman_filter(np.eye(2), np.eye(2), np.eye(2), np.eye(2), np.zeros(2), np.eye(2), np.zeros(10))
+    with pytest.raises(InputError, match="need both u"):
+        kalman.kalman_filter(*args, np.zeros((5, 1)), B=np.ones((2, 1)))
+    with pytest.raises(PfbenchError, match="not positive definite"):
+        kalman.kalman_filter(*args[:3], -np.eye(1), *args[4:], np.zeros((5, 1)))
 
 
 # ----------------------------------------------------------------------------- EKF
@@ -123,9 +141,12 @@ def test_ekf_equals_kf_on_linear_model():
     ref = kalman.kalman_filter(A, C, Q, R, x0, P0, y, B=B, u=u)
     res = kalman.ekf(lambda x, u, t: A @ x + B @ u, lambda x, u, t: A, lambda x, u, t: C @ x,
                      lambda x, u, t: C, Q, R, x0, P0, y, u=u)
-    np.testing.assert_allclose(res.means, ref.means, atol=1e-12)
-    np.testing.assert_allclose(res.covs, ref.covs, atol=1e-12)
+    np.testing.assert_allclose(res.estimates, ref.estimates, atol=1e-12)
+    np.testing.assert_allclose(res.covariances, ref.covariances, atol=1e-12)
+    for key in kalman.KALMAN_EXTRAS:
+        np.testing.assert_allclose(res.extras[key], ref.extras[key], atol=1e-12)
     assert res.loglik == pytest.approx(ref.loglik, rel=1e-12)
+    assert res.info["filter"] == "ekf" and ref.info["filter"] == "kf"
 
 
 def test_ekf_step_by_hand():
@@ -143,83 +164,6 @@ def test_ekf_step_by_hand():
     assert Pn[0, 0] == pytest.approx((1 - K * H) * Pp[0, 0])
 
 
-# ----------------------------------------------------------------------------- DARE
-
-def _dare_residual(X, A, B, Q, R):
-    G = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
-    return A.T @ X @ A - A.T @ X @ B @ G + Q - X
-
-
-def test_dare_matches_scipy_on_random_systems():
-    rng = np.random.default_rng(2024)
-    worst = 0.0
-    for k in range(300):
-        n, m = int(rng.integers(1, 7)), int(rng.integers(1, 4))
-        A = rng.standard_normal((n, n)) * (1.3 if k % 3 == 0 else 0.7)   # a third of them open-loop unstable
-        B = rng.standard_normal((n, m))
-        G = rng.standard_normal((n, n)); Q = G @ G.T + (0.0 if k % 5 == 0 else 0.01) * np.eye(n)
-        H = rng.standard_normal((m, m)); R = H @ H.T + 0.1 * np.eye(m)
-        X = kalman.dare(A, B, Q, R)
-        Xs = sl.solve_discrete_are(A, B, Q, R)
-        scale = max(1.0, np.abs(Xs).max())
-        worst = max(worst, np.abs(X - Xs).max() / scale)
-        assert np.abs(_dare_residual(X, A, B, Q, R)).max() <= 1e-8 * scale * max(1.0, np.abs(A).max() ** 2)
-        # stabilising: closed-loop A - B K inside the unit circle; symmetric PSD
-        K = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
-        assert np.abs(np.linalg.eigvals(A - B @ K)).max() < 1.0
-        assert np.allclose(X, X.T, atol=0)
-        assert np.linalg.eigvalsh(X).min() >= -1e-9 * scale
-    assert worst < 1e-7
-
-
-@pytest.mark.parametrize("args,msg", [
-    ((np.array([[2.0]]), np.array([[0.0]]), np.eye(1), np.eye(1)), "not stabilisable"),
-    ((np.diag([0.5, 1.0]), np.array([[1.0], [0.0]]), np.eye(2), np.eye(1)), "not stabilisable"),
-    ((np.array([[1.0]]), np.array([[1.0]]), np.zeros((1, 1)), np.eye(1)), "not detectable"),
-    ((np.eye(1), np.eye(1), np.eye(1), -np.eye(1)), "positive definite"),
-    ((np.eye(2), np.eye(1), np.eye(2), np.eye(1)), "shapes"),
-    ((np.eye(2), np.ones((2, 1)), -np.eye(2), np.eye(1)), "semi-definite"),
-])
-def test_dare_error_cases(args, msg):
-    with pytest.raises(PfbenchError, match=msg):
-        kalman.dare(*args)
-
-
-def test_dare_unit_circle_pencil_error():
-    # rotation (|lambda| = 1) with no control and no state weight: pencil eigenvalues on the unit circle
-    c, s = np.cos(0.3), np.sin(0.3)
-    A = np.array([[c, -s], [s, c]])
-    with pytest.raises(PfbenchError, match="unit circle"):
-        kalman.dare(A, np.array([[1.0], [0.0]]), np.zeros((2, 2)), np.eye(1), check=False)
-    with pytest.raises(PfbenchError, match="unit circle"):
-        kalman.dare(np.eye(1), np.zeros((1, 1)), np.eye(1), np.eye(1), check=False)
-
-
-def test_dare_scalar_closed_form_matches_general():
-    rng = np.random.default_rng(5)
-    for _ in range(200):
-        a = rng.uniform(-2.0, 2.0); b = rng.uniform(-3.0, 3.0)
-        q = rng.uniform(0.01, 5.0); r = rng.uniform(0.01, 5.0)
-        x = kalman.dare_scalar(a, b, q, r)
-        X = kalman.dare([[a]], [[b]], [[q]], [[r]])[0, 0]
-        assert x == pytest.approx(X, rel=1e-9, abs=1e-12)
-        assert x == pytest.approx(sl.solve_discrete_are([[a]], [[b]], [[q]], [[r]])[0, 0], rel=1e-9)
-    assert kalman.dare_scalar(0.5, 0.0, 1.0, 1.0) == pytest.approx(1.0 / 0.75)
-    # large c = 260 (the chapter's amplifier gain) with tiny q: no cancellation
-    assert kalman.dare_scalar(0.9, 260.0, 1e-6, 1.0) == pytest.approx(
-        kalman.dare([[0.9]], [[260.0]], [[1e-6]], [[1.0]])[0, 0], rel=1e-9)
-    with pytest.raises(PfbenchError):
-        kalman.dare_scalar(1.5, 0.0, 1.0, 1.0)
-
-
-def test_chapter_formula_is_continuous_time_riccati():
-    rng = np.random.default_rng(9)
-    for _ in range(50):
-        F = rng.uniform(-3, 1); H = rng.uniform(0.5, 300); Q = rng.uniform(0.01, 3); R = rng.uniform(0.01, 3)
-        p = kalman.chapter_riccati_scalar(F, H, Q, R)
-        assert p == pytest.approx(sl.solve_continuous_are([[F]], [[H]], [[Q]], [[R]])[0, 0], rel=1e-9)
-
-
 # ----------------------------------------------------------------------------- chapter loops
 
 def test_time_varying_kf_matches_filterpy_update_then_predict():
@@ -230,27 +174,91 @@ def test_time_varying_kf_matches_filterpy_update_then_predict():
     n = 60
     y = rng.standard_normal(n); u = rng.standard_normal((n, 1))
     res = kalman.time_varying_kf(A, B, C, Q, R, u, y, x0=x0, P0=P0)
+    ex = res.extras
     kf = KalmanFilter(dim_x=2, dim_z=1, dim_u=1)
     kf.x = x0.reshape(-1, 1).copy(); kf.P = P0.copy(); kf.F = A; kf.H = C; kf.Q = Q; kf.R = R; kf.B = B
     for i in range(n):
+        np.testing.assert_allclose(ex["pred_means"][i], kf.x.ravel(), atol=1e-10)
+        np.testing.assert_allclose(ex["pred_covs"][i], kf.P, atol=1e-10)
         kf.update(np.array([[y[i]]]))
-        np.testing.assert_allclose(res.x_filt[i], kf.x.ravel(), atol=1e-10)
-        assert res.errcov[i] == pytest.approx((C @ kf.P @ C.T)[0, 0], abs=1e-10)
+        np.testing.assert_allclose(res.estimates[i], kf.x.ravel(), atol=1e-10)
+        np.testing.assert_allclose(res.covariances[i], kf.P, atol=1e-10)
+        np.testing.assert_allclose(ex["yest"][i], C @ kf.x.ravel(), atol=1e-10)
+        assert ex["errcov"][i, 0, 0] == pytest.approx((C @ kf.P @ C.T)[0, 0], abs=1e-10)
+        # the Gaussian innovation log-likelihood of the chapter's loop
+        assert res.loglik_increments[i] == pytest.approx(kf.log_likelihood, rel=1e-10, abs=1e-10)
         kf.predict(u=u[i].reshape(-1, 1))
-        np.testing.assert_allclose(res.x_pred[i], kf.x.ravel(), atol=1e-10)
+        np.testing.assert_allclose(ex["x_pred"][i], kf.x.ravel(), atol=1e-10)
+        np.testing.assert_allclose(ex["ypred"][i], C @ kf.x.ravel(), atol=1e-10)
 
 
-def test_steady_state_kf_is_limit_of_time_varying():
-    rng = np.random.default_rng(23)
-    A, C, Q, R, x0, P0, B, _ = random_system(rng, 3, 1, 1)
+@pytest.mark.parametrize("n_y", [1, 2])
+def test_steady_state_kf_is_limit_of_time_varying(n_y):
+    """The DARE solution is the fixed point of the covariance recursion ([RTD] eq. 37): after 400
+    steps of a stable system (spectral radius 0.95, so 0.95^800 ~ 1e-18 of the initial transient
+    remains in P) the time-varying gain and covariances equal the steady-state ones to rounding."""
+    rng = np.random.default_rng(23 + n_y)
+    A, C, Q, R, x0, P0, B, _ = random_system(rng, 3, n_y, 1)
     n = 400
-    y = rng.standard_normal(n); u = rng.standard_normal((n, 1))
+    y = rng.standard_normal((n, n_y)); u = rng.standard_normal((n, 1))
     P_prior, P_post, M = kalman.steady_state_gain(A, C, Q, R)
     tv = kalman.time_varying_kf(A, B, C, Q, R, u, y, x0=x0, P0=P0)
-    np.testing.assert_allclose(tv.gains[-1], M, atol=1e-10)
-    assert tv.errcov[-1] == pytest.approx((C @ P_post @ C.T)[0, 0], rel=1e-9)
+    np.testing.assert_allclose(tv.extras["gains"][-1], M, atol=1e-10)
+    np.testing.assert_allclose(tv.covariances[-1], P_post, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(tv.extras["pred_covs"][-1], P_prior, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(tv.extras["errcov"][-1], C @ P_post @ C.T, rtol=1e-9, atol=1e-12)
     # started at the steady-state prior, the time-varying filter *is* the steady-state filter
     tv2 = kalman.time_varying_kf(A, B, C, Q, R, u, y, x0=x0, P0=P_prior)
     ss = kalman.steady_state_kf(A, B, C, Q, R, u, y, x0=x0)
-    np.testing.assert_allclose(tv2.x_filt, ss.x_filt, atol=1e-9)
-    np.testing.assert_allclose(tv2.ypred, ss.ypred, atol=1e-9)
+    np.testing.assert_allclose(tv2.estimates, ss.estimates, atol=1e-9)
+    np.testing.assert_allclose(tv2.covariances, ss.covariances, atol=1e-9)
+    for key in kalman.KALMAN_EXTRAS + kalman.CHAPTER_EXTRAS:
+        np.testing.assert_allclose(tv2.extras[key], ss.extras[key], atol=1e-9, err_msg=key)
+    np.testing.assert_allclose(tv2.loglik_increments, ss.loglik_increments, rtol=1e-9, atol=1e-9)
+
+
+# ----------------------------------------------------------------------------- FilterResult
+
+def _all_filters():
+    rng = np.random.default_rng(41)
+    A, C, Q, R, x0, P0, B, D = random_system(rng, 3, 2, 1)
+    M = 25
+    y = rng.standard_normal((M, 2)); u = rng.standard_normal((M, 1))
+    lin = (lambda x, u, t: A @ x + B @ u, lambda x, u, t: A, lambda x, u, t: C @ x, lambda x, u, t: C)
+    return M, {
+        "kf": kalman.kalman_filter(A, C, Q, R, x0, P0, y, B=B, D=D, u=u),
+        "ekf": kalman.ekf(*lin, Q, R, x0, P0, y, u=u),
+        "time_varying_kf": kalman.time_varying_kf(A, B, C, Q, R, u, y, x0=x0, P0=P0),
+        "steady_state_kf": kalman.steady_state_kf(A, B, C, Q, R, u, y, x0=x0),
+    }
+
+
+def test_every_kalman_filter_returns_a_filter_result():
+    """The one result type: catches a filter that returns anything else, variances that are not the
+    diagonal of its filtered covariances, increments that do not sum to the log-likelihood, or a
+    documented extras key missing or of the wrong shape."""
+    M, results = _all_filters()
+    n_x, n_y = 3, 2
+    shapes = {"pred_means": (M, n_x), "pred_covs": (M, n_x, n_x), "innovations": (M, n_y),
+              "innovation_covs": (M, n_y, n_y), "gains": (M, n_x, n_y), "x_pred": (M, n_x),
+              "yest": (M, n_y), "ypred": (M, n_y), "errcov": (M, n_y, n_y)}
+    for name, r in results.items():
+        assert isinstance(r, FilterResult)
+        assert r.method == "kalman" and r.info["filter"] == name
+        assert r.n_particles == 0 and r.n_resampled == 0 and r.n_filters == 1
+        assert r.estimates.shape == (M, n_x) and r.covariances.shape == (M, n_x, n_x)
+        np.testing.assert_array_equal(r.variances, np.diagonal(r.covariances, axis1=1, axis2=2))
+        assert r.ess.shape == (M,) and np.all(np.isnan(r.ess))
+        assert r.degenerate.shape == (M,) and not r.degenerate.any()
+        assert r.elapsed_s >= 0.0
+        assert r.loglik_increments.shape == (M,) and np.all(np.isfinite(r.loglik_increments))
+        assert r.loglik == pytest.approx(r.loglik_increments.sum(), rel=1e-14)
+        loop = name in ("time_varying_kf", "steady_state_kf")
+        keys = kalman.KALMAN_EXTRAS + (kalman.CHAPTER_EXTRAS if loop else ())
+        for key in keys:
+            assert r.extras[key].shape == shapes[key], (name, key)
+        # innovations are y minus the prediction, with covariance S = C P[t|t-1] C^T + R
+        S = r.extras["innovation_covs"]
+        np.testing.assert_allclose(r.loglik_increments,
+                                   [kalman.gaussian_logpdf(e, s) for e, s in zip(r.extras["innovations"], S)],
+                                   rtol=1e-12)

@@ -61,3 +61,26 @@ def test_cycles_file_missing_op_cli(tmp_path):
     f.write_text(json.dumps(raw))
     r = _run(["estimate", "--cycles", str(f), "--precision", "double"])
     assert r.exit_code == 2 and "'log'" in r.stderr
+
+
+def test_estimate_model_variant_and_params():
+    # `--model ob3:v2` is `--model ob3 --param version=2`; params are typed by the one parser.
+    a = _run(["estimate", "--model", "ob3:v2", "--steps", "10", "--particles", "20", "--json"])
+    b = _run(["estimate", "--model", "ob3", "--param", "version=2", "--steps", "10", "--particles", "20",
+              "--json"])
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    assert json.loads(a.stdout)["predicted_ms"] == json.loads(b.stdout)["predicted_ms"]
+    ref = cm.predict("ob3", 10, 20, "float", model_params={"version": 2})
+    assert json.loads(a.stdout)["predicted_ms"] == pytest.approx(ref["predicted_ms"], rel=1e-12)
+    r = _run(["estimate", "--model", "ob3:v2", "--param", "version=3"])
+    assert r.exit_code == 2 and "give the variant once" in r.stderr
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--method", "mpf"], "--method"),             # the counter covers the particle methods only
+    (["--resampling", "nope"], "--resampling"),
+    (["--param", "q"], "KEY=VALUE"),
+])
+def test_estimate_choices_come_from_the_tables(args, needle):
+    r = _run(["estimate", *args])
+    assert r.exit_code == 2 and needle in r.stderr and "\n" not in r.stderr.strip()

@@ -9,9 +9,9 @@ from pfbench import models
 from pfbench.plants import chamber
 from pfbench.cli import main
 from pfbench.plants.datalog import load_log, read_log, write_log
-from pfbench.errors import PfbenchError
+from pfbench.errors import DataError
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "reproductions" / "embedded" / "example_log.csv"
+EXAMPLE = Path(__file__).resolve().parents[2] / "reproductions" / "embedded" / "example_log.csv"
 GOOD = "time_s,y,u1,u2,t_out\n0,19.5,100,30,19.4375\n1,19.5625,100,30,19.4375\n2,19.625,0,100,19.5\n"
 
 
@@ -54,19 +54,19 @@ def test_mode_derived_from_u1_when_absent(tmp_path):
 ])
 def test_bad_logs_raise_one_line_naming_the_line(tmp_path, text, pattern):
     p = _write(tmp_path, text)
-    with pytest.raises(PfbenchError, match=pattern) as ei:
+    with pytest.raises(DataError, match=pattern) as ei:
         load_log(p, models.get("thermal_inertial"))
     assert "\n" not in str(ei.value)
 
 
 def test_outdoor_model_needs_t_out(tmp_path):
     p = _write(tmp_path, "time_s,y,u1,u2\n0,19.5,100,30\n1,19.5,100,30\n")
-    with pytest.raises(PfbenchError, match="missing column.*t_out"):
+    with pytest.raises(DataError, match="missing column.*t_out"):
         load_log(p, models.get("thermal_outdoor"))
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(PfbenchError, match="cannot read log"):
+    with pytest.raises(DataError, match="cannot read log"):
         read_log(tmp_path / "nope.csv")
 
 

@@ -1,5 +1,8 @@
 """Paper-scale runs (`make test-slow`; not run by CI)."""
+import json
+
 import numpy as np
+import pandas as pd
 import pytest
 
 import pfbench
@@ -9,18 +12,36 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.mark.parametrize("recipe_id", ["thesis:fig4.9", "multipdf:fig3", "embedded:tableA1", "rtd:fig5"])
-def test_full_recipe_runs_and_records_comparisons(recipe_id, tmp_path):
+def test_full_recipe_writes_its_outputs_and_ledger(recipe_id, tmp_path):
+    """Every output the recipe claims is a non-empty file; tables parse with rows and no NaN-only
+    columns; the JSON record says full mode and holds the same comparisons with computed values."""
     ctx = recipes.run(recipes.resolve(recipe_id), full=True, out_root=tmp_path, quiet=True)
-    assert ctx.outputs and all((tmp_path / ctx.recipe.paper).exists() for _ in ctx.outputs)
-    assert ctx.comparisons
-    assert (tmp_path / ctx.recipe.paper / f"{ctx.recipe.name}.json").exists()
+    assert ctx.outputs and ctx.comparisons
+    for out in ctx.outputs:
+        path = tmp_path / ctx.recipe.paper / out.rsplit("/", 1)[-1]
+        assert path.is_file() and path.stat().st_size > 0, out
+        if path.suffix == ".csv":
+            frame = pd.read_csv(path)
+            assert len(frame) > 0 and not frame.isna().all().any(), out
+    rec = json.loads((tmp_path / ctx.recipe.paper / f"{ctx.recipe.name}.json").read_text())
+    assert rec["mode"] == "full"
+    assert len(rec["comparisons"]) == len(ctx.comparisons)
+    for c in ctx.comparisons:
+        if isinstance(c.ours, float):
+            assert np.isfinite(c.ours), c.quantity
 
 
 def test_bootstrap_matches_kalman_at_large_n():
-    """N_p = 200000: Monte Carlo error of the posterior mean ~ 0.62 * sqrt(c / N) << 0.01."""
+    """N_p = 200000 against the exact KF. The tolerances come from the Monte Carlo spread measured
+    in the test: 8 runs at N = 20000 give the per-step and log-likelihood standard deviations, which
+    shrink by sqrt(10) at N = 200000; we allow 5 of those."""
     model = pfbench.models.get("linear_gaussian", A=[[0.9]], C=[[1.0]], Q=[[1.0]], R=[[1.0]])
     traj = model.simulate(200, seed=1)
     kf = kalman.filter_model(model, traj.y)
+    small = [pfbench.run_filter(model, traj.y, method="bootstrap", n_particles=20_000, backend="numba", seed=s)
+             for s in range(10, 18)]
+    mean_sd = np.sqrt(np.mean([(r.estimates[:, 0] - kf.estimates[:, 0]) ** 2 for r in small]))
+    ll_sd = np.std([r.loglik for r in small], ddof=1)
     r = pfbench.run_filter(model, traj.y, method="bootstrap", n_particles=200_000, backend="numba", seed=2)
-    assert np.sqrt(np.mean((r.estimates[:, 0] - kf.means[:, 0]) ** 2)) < 0.01
-    assert r.loglik == pytest.approx(kf.loglik, abs=0.1)
+    assert np.sqrt(np.mean((r.estimates[:, 0] - kf.estimates[:, 0]) ** 2)) < 5 * mean_sd / np.sqrt(10)
+    assert abs(r.loglik - kf.loglik) < 5 * ll_sd / np.sqrt(10)

@@ -5,8 +5,10 @@
   equivalence control (§4.3.3);
 * :mod:`.loss` - tracking loss (eq. 4.16), reference trajectory (§4.4.1) and the failure
   definition;
-* :mod:`.closed_loop` - closed-loop simulation: true plant + estimator (SMC with the optimal
-  proposal or EKF) + controller, batched and run in parallel processes.
+* :mod:`.smc` - the thesis SMC: the reduced PMSM model's optimal proposal + the generic guided
+  filter, and the point estimates (mean / random sample / maximum) used for control;
+* :mod:`.closed_loop` - closed-loop simulation: true plant + estimator (the SMC or the EKF) +
+  controller, batched and run in parallel processes.
 """
 from .loss import (FailureCriterion, estimation_failed, reference_speed, tracking_loss)
 from .pi import PIGains, pi_dq_control, pi_update

@@ -13,9 +13,11 @@ noise) and the point estimate (one uniform per step for the "random sample" esti
 plant stream is the same whatever estimator / controller / point estimate is used, so the
 comparisons of Figs. 4.7 and 4.9 use identical random numbers in all variants.
 
-The SMC run is one compiled numba function (``backend="numba"``) or the same code in plain
-Python (``backend="numpy"``, bit-identical). The EKF run (eq. 4.26 Jacobian, helpers of
-:mod:`pfbench.kalman`) is Python only. Batches of runs go to worker processes.
+The SMC is the reduced PMSM model + the generic guided filter (:mod:`.smc`), stepped inside the
+loop. The SMC run is one compiled numba function (``backend="numba"``, calling the compiled guided
+kernel) or the same code in plain Python (``backend="numpy"``, the NumPy guided step; equal to
+round-off). The EKF run (eq. 4.26 Jacobian, helpers of :mod:`pfbench.kalman`) is Python only.
+Batches of runs go to worker processes.
 """
 from __future__ import annotations
 
@@ -29,25 +31,29 @@ import numpy as np
 from ...backends.cache import njit
 
 from ...errors import PfbenchError
-from ...filters.optimal_proposal import (POINT_MODES, Q_THETA_FILTER, filter_params,
-                                        point_estimate, smc_init, smc_step, weights_from_log)
-from ...models.pmsm import Pmsm, jacobian, pmsm_step, wrap_angle
+from ...filters.inputs import ess_count
+from ...models.pmsm import Q_THETA_FILTER, Pmsm, jacobian, pmsm_step, wrap_angle
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
+from .smc import (ESS_FRACTION, N_NOISE, guided_init, guided_step, point_code, point_estimate,
+                  scheme_code, smc_model, split_particles, weights_from_log)
 
 CONTROLLERS = {"pi": 0, "cc": 1, "cec": 2}
 
 
-def _closed_loop_smc_py(mp, fp, cp, consts, S, w_ref, x0, n, point_mode, controller,
+def _closed_loop_smc_py(mp, p, scheme, threshold, cp, consts, S, w_ref, x0, n, point_mode, controller,
                         rng_plant, rng_filter, rng_point, xs, ys, us, est, spread, ess, res,
                         store, hist_om, hist_th, hist_w):
     M = w_ref.shape[0]
+    particles = np.empty((n, 2))
     om = np.empty(n)
     th = np.empty(n)
     lw = np.empty(n)
-    wb = np.empty(n)
     wn = np.empty(n)
+    mean = np.empty(2)
+    var = np.empty(2)
+    ured = np.empty(4)
     pe = np.empty(5)
     integ = np.zeros(3)
     x = np.empty(4)
@@ -58,7 +64,7 @@ def _closed_loop_smc_py(mp, fp, cp, consts, S, w_ref, x0, n, point_mode, control
     one_w = np.ones(1)
     sq0, sq1, sq2, sq3 = math.sqrt(mp[6]), math.sqrt(mp[7]), math.sqrt(mp[8]), math.sqrt(mp[9])
     sr0, sr1 = math.sqrt(mp[10]), math.sqrt(mp[11])
-    smc_init(rng_filter, om, th, lw, fp)
+    guided_init(p, rng_filter, particles, lw)
     for k in range(4):
         x[k] = x0[k]
     for t in range(M):
@@ -72,14 +78,20 @@ def _closed_loop_smc_py(mp, fp, cp, consts, S, w_ref, x0, n, point_mode, control
         zv = rng_plant.standard_normal(2)
         ys[t, 0] = x[0] + sr0 * zv[0]
         ys[t, 1] = x[1] + sr1 * zv[1]
-        if t > 0:
-            inc, r, e = smc_step(rng_filter, om, th, lw, wb, ys[t - 1], ys[t], us[t - 1], mp, fp)
+        if t > 0:  # inputs of the reduced model: (u_{t-1}, y_{t-1})
+            ured[0] = us[t - 1, 0]
+            ured[1] = us[t - 1, 1]
+            ured[2] = ys[t - 1, 0]
+            ured[3] = ys[t - 1, 1]
+            _, e, r, _ = guided_step(p, rng_filter, particles, lw, ys[t], ured, t, N_NOISE, scheme,
+                                     threshold, mean, var)
             ess[t] = e
             res[t] = r
         else:
             ess[t] = n
             res[t] = False
         weights_from_log(lw, wn)
+        split_particles(particles, om, th)
         point_estimate(om, th, wn, point_mode, rng_point, pe)
         if controller == 0:
             pi_dq_control(ys[t, 0], ys[t, 1], pe[0], pe[1], w_ref[t], integ, cp, u)
@@ -130,7 +142,8 @@ class LoopConfig:
 
     estimator: str = "smc"            # smc | ekf
     n_particles: int = 60
-    ess_threshold: float = 12.0
+    ess_threshold: float = ESS_FRACTION  # resample when N_eff < this * N (Table 4.2: 12 of 60)
+    resampling: str = "residual_deterministic"  # Table 4.2
     point: str = "mean"               # mean | sample | max  (SMC)
     controller: str = "pi"            # pi | cc | cec
     horizon: int = 80                 # CC/CEC horizon n
@@ -154,8 +167,8 @@ def run_once(cfg: LoopConfig, seed: int = 0, run: int = 0) -> dict:
     """One closed-loop run; returns the trajectories and the summary (loss, failed)."""
     if cfg.controller not in CONTROLLERS:
         raise PfbenchError(f"unknown controller {cfg.controller!r}; choose pi, cc or cec")
-    if cfg.point not in POINT_MODES:
-        raise PfbenchError(f"unknown point estimate {cfg.point!r}; choose mean, sample or max")
+    mode = point_code(cfg.point)
+    scheme = scheme_code(cfg.resampling)
     model = Pmsm(**cfg.model_kw)
     mp = model.param_array()
     cp = cfg.gains.array(model)
@@ -170,17 +183,18 @@ def run_once(cfg: LoopConfig, seed: int = 0, run: int = 0) -> dict:
         th_mu, th_mode = 0.0, cfg.theta_prior
     t0 = time.perf_counter()
     if cfg.estimator == "smc":
-        fp = filter_params(model, ess_threshold=cfg.ess_threshold, q_theta_filter=cfg.q_theta_filter,
-                           theta_prior=th_mode, theta_mu=th_mu, theta_sd=cfg.theta_prior_sd)
+        p = smc_model(model, q_theta_filter=cfg.q_theta_filter, theta_prior=th_mode, theta_mu=th_mu,
+                      theta_sd=cfg.theta_prior_sd).params()
         consts, S = cc_constants(mp, cfg.horizon)
         n = int(cfg.n_particles)
+        threshold = ess_count(cfg.ess_threshold, n)
         xs, ys, us = np.empty((M, 4)), np.empty((M, 2)), np.empty((M, 2))
         est, spread = np.empty((M, 2)), np.empty((M, 3))
         ess, res = np.empty(M), np.zeros(M, dtype=np.bool_)
         hs = (M, n) if cfg.store_particles else (1, 1)
         hist = [np.zeros(hs), np.zeros(hs), np.zeros(hs)]
         fn = _closed_loop_smc_nb if cfg.backend == "numba" else _closed_loop_smc_py
-        fn(mp, fp, cp, consts, S, w_ref, x0, n, POINT_MODES[cfg.point], CONTROLLERS[cfg.controller],
+        fn(mp, p, scheme, threshold, cp, consts, S, w_ref, x0, n, mode, CONTROLLERS[cfg.controller],
            rng_plant, rng_filter, rng_point, xs, ys, us, est, spread, ess, res,
            cfg.store_particles, *hist)
         out = {"x": xs, "y": ys, "u": us, "est": est, "spread": spread, "ess": ess,

@@ -7,7 +7,7 @@ import pytest
 
 from pfbench import kalman
 from pfbench.plants import rtd
-from pfbench.errors import PfbenchError
+from pfbench.errors import DataError, InputError
 
 
 def test_identified_model_poles_and_gain():
@@ -33,7 +33,7 @@ def test_fit_exponential_exact_on_noise_free_data():
     f = rtd.fit_exponential(t, 3.0 * np.exp(-0.25 * t))
     assert f.amp == pytest.approx(3.0, rel=1e-12) and f.rate == pytest.approx(-0.25, rel=1e-12)
     assert f.tau == pytest.approx(4.0, rel=1e-12)
-    with pytest.raises(PfbenchError):
+    with pytest.raises(InputError):
         rtd.fit_exponential(t, -np.exp(-t))
 
 
@@ -64,7 +64,7 @@ def test_rc_model_discretisation():
     assert rc.A[0, 0] == pytest.approx(np.exp(-0.05)) and rc.B[0, 0] == pytest.approx(1 - np.exp(-0.05))
     assert rc.C[0, 0] == 260.0
     assert rc.dc_gain == pytest.approx(260.0)
-    with pytest.raises(PfbenchError):
+    with pytest.raises(InputError):
         rtd.rc_model(-1.0)
 
 
@@ -115,21 +115,21 @@ def _write(path, text):
 
 
 def test_load_log_errors(tmp_path):
-    with pytest.raises(PfbenchError, match="not found"):
+    with pytest.raises(DataError, match="not found"):
         rtd.load_log(tmp_path / "nope.csv")
-    with pytest.raises(PfbenchError, match="missing column 'y'"):
+    with pytest.raises(DataError, match="missing column 'y'"):
         rtd.load_log(_write(tmp_path / "a.csv", "t,z\n" + "".join(f"{i},{i}\n" for i in range(30))))
-    with pytest.raises(PfbenchError, match="non-numeric"):
+    with pytest.raises(DataError, match="non-numeric"):
         rtd.load_log(_write(tmp_path / "b.csv", "t,y\n" + "".join(f"{i},x{i}\n" for i in range(30))))
-    with pytest.raises(PfbenchError, match="at least 20"):
+    with pytest.raises(DataError, match="at least 20"):
         rtd.load_log(_write(tmp_path / "c.csv", "t,y\n0,1\n1,2\n"))
-    with pytest.raises(PfbenchError, match="strictly increasing"):
+    with pytest.raises(DataError, match="strictly increasing"):
         rtd.load_log(_write(tmp_path / "d.csv", "t,y\n" + "".join(f"{i % 10},{i}\n" for i in range(30))))
-    with pytest.raises(PfbenchError, match="uniformly"):
+    with pytest.raises(DataError, match="uniformly"):
         rtd.load_log(_write(tmp_path / "e.csv", "t,y\n" + "".join(f"{i * i},{i}\n" for i in range(30))))
-    with pytest.raises(PfbenchError, match="NaN"):
+    with pytest.raises(DataError, match="NaN"):
         rtd.load_log(_write(tmp_path / "f.csv", "t,y\n" + "".join(f"{i},{'nan' if i == 3 else i}\n" for i in range(30))))
-    with pytest.raises(PfbenchError, match="cannot parse"):
+    with pytest.raises(DataError, match="cannot parse"):
         rtd.load_log(_write(tmp_path / "g.csv", 't,y\n"0,1\n'))
 
 
@@ -180,9 +180,9 @@ def test_bath_recipe_on_data(tmp_path):
     ctx = _run("rtd:fig6", tmp_path, data=good)
     assert any("log bath.csv" in n for n in ctx.notes)
     bad = _write(tmp_path / "bad.csv", "time,reading\n1,2\n")
-    with pytest.raises(PfbenchError, match="missing column"):
+    with pytest.raises(DataError, match="missing column"):
         _run("rtd:fig7", tmp_path, data=bad)
     flat = tmp_path / "flat.csv"
     pd.DataFrame({"t": t, "y": y, "u": np.full(t.size, 25.0)}).to_csv(flat, index=False)
-    with pytest.raises(PfbenchError, match="step up"):
+    with pytest.raises(DataError, match="step up"):
         _run("rtd:fig6", tmp_path, data=flat)

@@ -1,0 +1,137 @@
+"""The numba guided-filter kernel: a model's own proposal, or the locally optimal one.
+
+This is the compiled twin of the NumPy reference in :mod:`pfbench.filters.guided`: the same steps,
+the same random draws in the same order, the same weighting (:mod:`pfbench.backends.numba_weights`)
+and resampling (:func:`pfbench.backends.numba_resampling.resample_into`). It calls the model through
+four module globals, ``_initial``, ``_proposal``, ``_proposal_log_weight`` and
+``_predictive_log_likelihood``. As a file it is importable (they are placeholders here);
+:func:`pfbench.backends.numba_backend.kernel_module` (family ``"guided"``) writes a copy of it per
+model class with the model's compiled functions bound to those names at the end.
+
+Each kind of proposal has its own step and run functions, so numba only ever compiles the model
+functions that kind uses (a model with its own proposal need not define
+``predictive_log_likelihood`` and vice versa). :func:`init` and the ``step_*`` functions are also
+called one step at a time from other compiled code (the closed-loop PMSM simulation), through
+:func:`pfbench.filters.guided.step_functions`.
+
+Arguments shared by the step functions: ``p`` the model's ``params()``, ``rng`` the generator,
+``x`` (n, n_x) particles (updated in place; their dtype is the particle dtype), ``lw`` (n,)
+normalised log-weights (updated in place), ``y``/``u`` the measurement and input of step ``t``,
+``n_noise`` standard normals per particle for the proposal, ``scheme`` a
+:class:`~pfbench.resampling.Scheme` code, ``threshold`` the resampling threshold as a particle count
+(resample when N_eff < threshold), ``mean``/``var`` (n_x,) outputs: the weighted mean and variance of
+the particles of step t. They return ``(loglik increment, N_eff, resampled, degenerate)``.
+"""
+import numpy as _np
+
+from pfbench.backends.cache import njit as _njit
+from pfbench.backends.numba_resampling import resample_into as _resample_into
+from pfbench.backends.numba_weights import moments as _moments
+from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
+from pfbench.backends.numba_weights import weigh as _weigh
+
+
+def _initial(rng, n, p):  # pragma: no cover - bound per model in the generated module
+    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
+
+
+def _proposal(x_prev, y, u, t, noise, p):  # pragma: no cover - bound per model
+    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
+
+
+def _proposal_log_weight(x, x_prev, y, u, t, p):  # pragma: no cover - bound per model
+    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
+
+
+def _predictive_log_likelihood(y, x_prev, u, t, p):  # pragma: no cover - bound per model
+    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
+
+
+@_njit(nogil=True)
+def init(p, rng, x, lw):
+    """x_{-1} ~ the model's prior, equal weights."""
+    n = x.shape[0]
+    x[:] = _initial(rng, n, p)
+    lw[:] = -_np.log(n)
+
+
+@_njit(nogil=True)
+def _resample(x, lw, wu, cdf, scheme, rng):
+    n = x.shape[0]
+    idx = _np.empty(n, _np.int64)
+    _resample_into(scheme, wu, cdf, rng, idx)
+    buf = x.copy()
+    for i in range(n):
+        for a in range(x.shape[1]):
+            x[i, a] = buf[idx[i], a]
+    lw[:] = -_np.log(n)
+
+
+@_njit(nogil=True)
+def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+    """The model's own proposal: x_t ~ q(. | x_{t-1}, y_t), weight by ``proposal_log_weight``,
+    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000])."""
+    n = x.shape[0]
+    wu = _np.empty(n)
+    cdf = _np.empty(n)
+    noise = rng.standard_normal((n, n_noise))
+    xn = _np.empty_like(x)
+    xn[:] = _proposal(x, y, u, t, noise, p)
+    ll = _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
+    x[:] = xn
+    m, total, deg = _weigh(lw, ll, wu, cdf)
+    inc = -_np.inf if deg else m + _np.log(total)
+    e = _moments(x, wu, total, mean, var)
+    do = e < threshold
+    if do:
+        _resample(x, lw, wu, cdf, scheme, rng)
+    else:
+        _normalised_log_weights(wu, total, lw)
+    return inc, e, do, deg
+
+
+@_njit(nogil=True)
+def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+    """The locally optimal proposal, fully adapted order ([Doucet2000]; [Thesis] eqs. 4.24-4.25):
+    weight by p(y_t | x_{t-1}), resample when N_eff < threshold, then propagate
+    x_t ~ p(x_t | x_{t-1}, y_t); the estimate is the weighted mean of the propagated particles."""
+    n = x.shape[0]
+    wu = _np.empty(n)
+    cdf = _np.empty(n)
+    ll = _predictive_log_likelihood(y, x, u, t, p).astype(_np.float64)
+    m, total, deg = _weigh(lw, ll, wu, cdf)
+    inc = -_np.inf if deg else m + _np.log(total)
+    e = _moments(x, wu, total, mean, var)  # N_eff of the new weights (mean/var overwritten below)
+    do = e < threshold
+    if do:
+        _resample(x, lw, wu, cdf, scheme, rng)
+        wu[:] = 1.0
+        total = float(n)
+    else:
+        _normalised_log_weights(wu, total, lw)
+    noise = rng.standard_normal((n, n_noise))
+    xn = _np.empty_like(x)
+    xn[:] = _proposal(x, y, u, t, noise, p)
+    x[:] = xn
+    _moments(x, wu, total, mean, var)
+    return inc, e, do, deg
+
+
+@_njit(nogil=True)
+def run_proposal(p, rng, y, u, x, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen):
+    """All M steps with the model's own proposal; outputs (M, ...) filled in place."""
+    lw = _np.empty(x.shape[0])
+    init(p, rng, x, lw)
+    for t in range(y.shape[0]):
+        inc[t], ess[t], resampled[t], degen[t] = step_proposal(
+            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t])
+
+
+@_njit(nogil=True)
+def run_optimal(p, rng, y, u, x, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen):
+    """All M steps with the locally optimal proposal; outputs (M, ...) filled in place."""
+    lw = _np.empty(x.shape[0])
+    init(p, rng, x, lw)
+    for t in range(y.shape[0]):
+        inc[t], ess[t], resampled[t], degen[t] = step_optimal(
+            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t])
