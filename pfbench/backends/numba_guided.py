@@ -68,25 +68,35 @@ def _resample(x, lw, wu, cdf, scheme, rng):
 
 
 @_njit(nogil=True)
-def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
-    """The model's own proposal: x_t ~ q(. | x_{t-1}, y_t), weight by ``proposal_log_weight``,
-    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000])."""
+def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, cdf):
+    """Weigh (log-sum-exp), N_eff, then resample or keep the normalised log-weights (twin of
+    ``pfbench.filters.guided._reweigh``). Returns (increment, N_eff, resampled, degenerate, total);
+    ``wu`` holds equal weights after a resampling."""
     n = x.shape[0]
-    wu = _np.empty(n)
-    cdf = _np.empty(n)
-    noise = rng.standard_normal((n, n_noise))
-    xn = _np.empty_like(x)
-    xn[:] = _proposal(x, y, u, t, noise, p)
-    ll = _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
-    x[:] = xn
     m, total, deg = _weigh(lw, ll, wu, cdf)
     inc = -_np.inf if deg else m + _np.log(total)
     e = _moments(x, wu, total, mean, var)
     do = e < threshold
     if do:
         _resample(x, lw, wu, cdf, scheme, rng)
+        wu[:] = 1.0
+        total = float(n)
     else:
         _normalised_log_weights(wu, total, lw)
+    return inc, e, do, deg, total
+
+
+@_njit(nogil=True)
+def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+    """The model's own proposal: x_t ~ q(. | x_{t-1}, y_t), weight by ``proposal_log_weight``,
+    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000])."""
+    n = x.shape[0]
+    noise = rng.standard_normal((n, n_noise))
+    xn = _np.empty_like(x)
+    xn[:] = _proposal(x, y, u, t, noise, p)
+    ll = _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
+    x[:] = xn
+    inc, e, do, deg, _ = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, _np.empty(n), _np.empty(n))
     return inc, e, do, deg
 
 
@@ -97,18 +107,8 @@ def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
     x_t ~ p(x_t | x_{t-1}, y_t); the estimate is the weighted mean of the propagated particles."""
     n = x.shape[0]
     wu = _np.empty(n)
-    cdf = _np.empty(n)
     ll = _predictive_log_likelihood(y, x, u, t, p).astype(_np.float64)
-    m, total, deg = _weigh(lw, ll, wu, cdf)
-    inc = -_np.inf if deg else m + _np.log(total)
-    e = _moments(x, wu, total, mean, var)  # N_eff of the new weights (mean/var overwritten below)
-    do = e < threshold
-    if do:
-        _resample(x, lw, wu, cdf, scheme, rng)
-        wu[:] = 1.0
-        total = float(n)
-    else:
-        _normalised_log_weights(wu, total, lw)
+    inc, e, do, deg, total = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, _np.empty(n))
     noise = rng.standard_normal((n, n_noise))
     xn = _np.empty_like(x)
     xn[:] = _proposal(x, y, u, t, noise, p)

@@ -237,46 +237,44 @@ def numpy_init(fns, p, rng, x, lw) -> None:
     lw[:] = -np.log(n)
 
 
-def numpy_step_proposal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
-    """One step with the model's own proposal (see the module docstring); NumPy twin of
-    ``numba_guided.step_proposal``. Returns (increment, N_eff, resampled, degenerate)."""
-    n = x.shape[0]
-    noise = rng.standard_normal((n, n_noise))
-    xn = np.empty_like(x)
-    xn[:] = fns["proposal"](x, y, u, t, noise, p)
-    ll = _clean(fns["proposal_log_weight"](xn, x, y, u, t, p))
-    x[:] = xn
+def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var):
+    """Weigh (log-sum-exp), N_eff, then resample or keep the normalised log-weights: the part both
+    kinds of step share. Returns (increment, N_eff, resampled, degenerate, wu, total), with
+    ``wu``/``total`` the equal weights after a resampling."""
     wu, _, m, total, deg = weigh(lw, ll)
     inc = -np.inf if deg else m + np.log(total)
     e = _moments(x, wu, total, mean, var)
     do = bool(e < threshold)
     if do:
         _resample(x, lw, wu, scheme, rng)
+        wu, total = np.ones(x.shape[0]), float(x.shape[0])
     else:
         lw[:] = normalised_log_weights(wu, total)
-    return inc, e, do, bool(deg)
+    return inc, e, do, bool(deg), wu, total
+
+
+def numpy_step_proposal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+    """One step with the model's own proposal (see the module docstring); NumPy twin of
+    ``numba_guided.step_proposal``. Returns (increment, N_eff, resampled, degenerate)."""
+    noise = rng.standard_normal((x.shape[0], n_noise))
+    xn = np.empty_like(x)
+    xn[:] = fns["proposal"](x, y, u, t, noise, p)
+    ll = _clean(fns["proposal_log_weight"](xn, x, y, u, t, p))
+    x[:] = xn
+    return _reweigh(x, lw, ll, scheme, threshold, rng, mean, var)[:4]
 
 
 def numpy_step_optimal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
     """One fully adapted step with the locally optimal proposal (see the module docstring); NumPy
     twin of ``numba_guided.step_optimal``. Returns (increment, N_eff, resampled, degenerate)."""
-    n = x.shape[0]
     ll = _clean(fns["predictive_log_likelihood"](y, x, u, t, p))
-    wu, _, m, total, deg = weigh(lw, ll)
-    inc = -np.inf if deg else m + np.log(total)
-    e = _moments(x, wu, total, mean, var)
-    do = bool(e < threshold)
-    if do:
-        _resample(x, lw, wu, scheme, rng)
-        wu, total = np.ones(n), float(n)
-    else:
-        lw[:] = normalised_log_weights(wu, total)
-    noise = rng.standard_normal((n, n_noise))
+    inc, e, do, deg, wu, total = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var)
+    noise = rng.standard_normal((x.shape[0], n_noise))
     xn = np.empty_like(x)
     xn[:] = fns["proposal"](x, y, u, t, noise, p)
     x[:] = xn
     _moments(x, wu, total, mean, var)
-    return inc, e, do, bool(deg)
+    return inc, e, do, deg
 
 
 _NUMPY_STEPS = {"proposal": numpy_step_proposal, "optimal": numpy_step_optimal}

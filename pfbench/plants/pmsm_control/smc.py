@@ -35,6 +35,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from ...backends.cache import njit
+from ...backends.numba_weights import weigh as _weigh
 from ...errors import InputError
 from ...filters.guided import step_functions
 from ...filters.inputs import ess_count, seed_sequence
@@ -78,18 +79,13 @@ def scheme_code(resampling) -> int:
 
 @register_jitable
 def weights_from_log(lw, wn):
-    """Normalised linear weights from log-weights (into ``wn``)."""
+    """Normalised linear weights from log-weights (into ``wn``), by the engine's log-sum-exp
+    weighting (:func:`pfbench.backends.numba_weights.weigh` with zero log-likelihoods)."""
     n = lw.shape[0]
-    mx = -math.inf
+    cdf = np.empty(n)
+    _, total, _ = _weigh(lw, np.zeros(n), wn, cdf)
     for i in range(n):
-        if lw[i] > mx:
-            mx = lw[i]
-    tot = 0.0
-    for i in range(n):
-        wn[i] = math.exp(lw[i] - mx)
-        tot += wn[i]
-    for i in range(n):
-        wn[i] /= tot
+        wn[i] /= total
 
 
 @register_jitable
