@@ -167,11 +167,18 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
 def bench(repeats, quick, no_particles, out_path, as_json):
     """Time Ob1 bootstrap on both backends and dtypes against the irreducible-work floor."""
     from .io import write_json
+    from .resources import check_writable, path_error
 
+    check_writable(out_path, "--out")  # before minutes of timing, not after
     res = run_bench(repeats=repeats, quick=quick, with_particles=not no_particles)
-    write_json(out_path, res)
+    try:
+        write_json(out_path, res)
+    except OSError as exc:  # e.g. the disk filled up meanwhile
+        raise path_error(exc, out_path, "--out") from None
     if as_json:
-        click.echo(json.dumps(res))
+        from .io import to_json
+
+        click.echo(to_json(res))
         return
     click.echo(f"{'M':>6} {'N_p':>7} {'backend':>7} {'dtype':>8} {'ns/p-step':>10} {'x floor':>8}")
     for r in res["rows"]:

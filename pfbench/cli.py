@@ -5,6 +5,12 @@ Error policy (one place, :meth:`PfbenchGroup.main`):
 * a user error -- a :class:`~pfbench.errors.PfbenchError` (bad value, name, option, file, a
   method the model does not support) or a click usage error -- is one line ``error: ...`` on
   stderr and exit code 2 (``pfbench --debug ...`` adds the traceback);
+* running out of memory (a ``MemoryError`` that the checks before allocating did not foresee) is
+  one line and exit code 2;
+* an ``OSError`` on a user-chosen path (read-only file system, no permission, disk full, a parent
+  that is a file, ...; see :func:`_is_path_fault`) is one line naming the path and what to do,
+  exit code 2 -- a safety net: the places that write user-named files raise a DataError already.
+  An OSError without a file name, with another errno or on a file inside the package is a bug;
 * Ctrl-C ends with exit code 130;
 * anything else is a bug in pfbench: its traceback and exit code 1.
 
@@ -15,7 +21,7 @@ next to their code and are added here. Every ``KEY=VALUE`` flag is read by
 from __future__ import annotations
 
 import importlib
-import json
+import math
 import os
 import sys
 import traceback
@@ -33,6 +39,35 @@ DEBUG_ENV = "PFBENCH_DEBUG"
 
 def _one_line(msg: str) -> str:
     return " ".join(str(msg).split())
+
+
+def _bug() -> None:
+    """Print the traceback of the exception being handled (a bug in pfbench) and exit 1."""
+    traceback.print_exc()
+    click.echo("error: internal error in pfbench (a bug; the traceback above shows where). "
+               "Please report it.", err=True)
+    sys.exit(1)
+
+
+def _is_path_fault(exc: OSError) -> bool:
+    """An OSError the user or the system caused on a path they chose, not a bug.
+
+    It must name a file, have an errno of an unusable path (read-only file system, no permission,
+    disk full, not a directory, ... :data:`pfbench.resources.PATH_ERRNOS`) and the file must lie
+    outside the installed pfbench package (a missing or unreadable package file is a bug or a
+    broken installation, and keeps its traceback).
+    """
+    from pathlib import Path
+
+    from .resources import PATH_ERRNOS
+
+    if exc.filename is None or exc.errno not in PATH_ERRNOS:
+        return False
+    try:
+        Path(os.fsdecode(exc.filename)).resolve().relative_to(Path(__file__).resolve().parent)
+    except (ValueError, OSError, TypeError):
+        return True
+    return False
 
 
 class PfbenchGroup(click.Group):
@@ -55,7 +90,9 @@ class PfbenchGroup(click.Group):
             sys.exit(2)
         except click.exceptions.Exit as exc:
             sys.exit(exc.exit_code)
-        except click.Abort:
+        except click.Abort as exc:
+            if isinstance(exc.__cause__, EOFError):  # click wraps an EOFError as Abort: not a Ctrl-C
+                _bug()
             click.echo("error: interrupted", err=True)
             sys.exit(130)
         except KeyboardInterrupt:
@@ -69,11 +106,23 @@ class PfbenchGroup(click.Group):
                 traceback.print_exc()
             click.echo(f"error: {_one_line(exc)}", err=True)
             sys.exit(2)
+        except MemoryError:
+            if self.debug:
+                traceback.print_exc()
+            click.echo("error: out of memory; use fewer particles/steps (or fewer --workers) or raise the "
+                       "memory limit", err=True)
+            sys.exit(2)
+        except OSError as exc:  # a user-named path that cannot be used; any other OSError is a bug
+            if not _is_path_fault(exc):
+                _bug()
+            if self.debug:
+                traceback.print_exc()
+            from .resources import os_error_message
+
+            click.echo(f"error: {_one_line(os_error_message(exc))}", err=True)
+            sys.exit(2)
         except Exception:  # noqa: BLE001 - anything else is a bug: show where it happened
-            traceback.print_exc()
-            click.echo("error: internal error in pfbench (a bug; the traceback above shows where). "
-                       "Please report it.", err=True)
-            sys.exit(1)
+            _bug()
         if isinstance(rv, int):
             sys.exit(rv)
         sys.exit(0)
@@ -150,6 +199,11 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
     if filters > particles:
         raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
                                  param_hint="'--filters'")
+    if not data:  # check before you spend: refuse what cannot fit before simulating/allocating
+        from .resources import check_filter_memory
+
+        check_filter_memory(model, method, particles, n_filters=filters, n_steps=steps, dtype=dtype,
+                            backend=backend)
     if data:
         from .plants.datalog import load_log
 
@@ -176,7 +230,13 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
     if res.info.get("note"):
         out["note"] = res.info["note"]
     if as_json:
-        click.echo(json.dumps(out, default=str))
+        from .io import to_json
+
+        if not math.isfinite(res.loglik):
+            why = (f"{int(res.degenerate.sum())} degenerate steps (every particle weight zero)"
+                   if res.degenerate.any() else "the likelihood under/overflowed")
+            out["loglik_nonfinite"] = f"{res.loglik}: {why}"
+        click.echo(to_json(out, default=str))
         return
     for k, v in out.items():
         if k == "note" or (k == "params" and not v):
@@ -197,7 +257,9 @@ def list_cmd(as_json):
 
     reg = discover()
     if as_json:
-        click.echo(json.dumps([{"id": r.id, "aliases": list(r.aliases), "paper": r.paper, "title": r.title,
+        from .io import to_json
+
+        click.echo(to_json([{"id": r.id, "aliases": list(r.aliases), "paper": r.paper, "title": r.title,
                                 "quick_cost": r.quick_cost, "full_cost": r.full_cost,
                                 "needs": list(r.needs), "reads_data": r.reads_data,
                                 "options": {o.key: o.as_dict() for o in r.options}}
@@ -252,8 +314,12 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
     """Run recipe(s): `pfbench reproduce fig5`, `pfbench reproduce multipdf:fig3 --full`."""
     from . import recipes
 
+    if run_all and recipe_ids:
+        raise click.UsageError("give recipe IDs or --all, not both")
+    if paper is not None and not run_all:
+        raise click.UsageError("--paper selects recipes with --all (e.g. --all --paper thesis)")
     if run_all:
-        recs = [r for r in recipes.discover().values() if paper is None or r.paper == paper]
+        recs = recipes.select(paper)
     elif recipe_ids:
         recs = [recipes.resolve(r) for r in recipe_ids]
     else:
@@ -268,12 +334,12 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
     if len(recs) > 1:
         from .options import check_known
 
-        check_known(opts, {k for r in recs for k in r.option_keys}, "the selected recipes")
+        check_known(opts, {k for r in recs for k in r.option_keys}, "an option of the selected recipes")
     recipes.check_data(recs, data)
     failed = []
     for rec in recs:
-        if run_all and rec.needs and not _needs_met(rec.needs):
-            click.echo(f"-- {rec.id}: skipped (needs {', '.join(rec.needs)}; run `make mcu-tools`)")
+        if run_all and rec.needs and not recipes.needs_met(rec.needs):
+            click.echo(f"-- {rec.id}: skipped ({recipes.needs_hint(rec.needs)})")
             continue
         click.echo(f"== {rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
         try:
@@ -294,25 +360,28 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
         raise PfbenchError(f"{len(failed)} recipe(s) failed: {', '.join(failed)}")
 
 
-def _needs_met(needs) -> bool:
-    for need in needs:
-        if need == "mcu-tools":
-            try:
-                from .mcu import toolchain
-            except ImportError:
-                return False
-            if not toolchain.available():
-                return False
-    return True
-
-
 @main.command()
 @click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
-def report(out_root):
-    """Regenerate results/REPORT.md from the provenance records."""
+@click.option("--strict", is_flag=True,
+              help="Exit 2 if a result is damaged: a record that is not valid JSON, or an "
+                   "artefact that is missing or differs from its record's checksum.")
+def report(out_root, strict):
+    """Regenerate results/REPORT.md from the provenance records, each verified against the
+    checksums of its files. Damaged results are printed as warnings; they and the recipes that
+    have not been run are listed in the report's "Not reproduced / damaged" section."""
     from .recipes import write_report
 
-    click.echo(f"wrote {write_report(out_root)}")
+    path, problems = write_report(out_root)
+    damaged = [p for p in problems if p.damaged]
+    for p in damaged:
+        click.echo(f"warning: {_one_line(p.line())}", err=True)
+    click.echo(f"wrote {path}")
+    if len(problems) > len(damaged):
+        click.echo(f"{len(problems) - len(damaged)} recipe(s) not run or with leftovers of an "
+                   "interrupted run (listed in the report)")
+    if strict and damaged:
+        raise PfbenchError(f"report --strict: {len(damaged)} result(s) damaged or incomplete "
+                           f"(listed in {path})")
 
 
 # --------------------------------------------------------------------------- info / bench
@@ -326,7 +395,9 @@ def info(as_json):
     data = {"host": host_info(), "numba_threading_layer": numba_threading_layer(),
             "packages": package_versions(), "models": models.names()}
     if as_json:
-        click.echo(json.dumps(data))
+        from .io import to_json
+
+        click.echo(to_json(data))
         return
     for k, v in data["host"].items():
         click.echo(f"{k:>22}: {v}")

@@ -8,6 +8,7 @@ key or an item without ``=`` is an :class:`~pfbench.errors.InputError` that name
 """
 from __future__ import annotations
 
+import difflib
 import enum
 import json
 import math
@@ -66,13 +67,24 @@ def parse_key_values(items: Iterable[str], flag: str = "--option") -> dict:
     return out
 
 
-def check_known(options: dict, known: Iterable[str], what: str, flag: str = "--option") -> None:
-    """Raise an :class:`InputError` listing the valid keys if ``options`` has an unknown one."""
+def did_you_mean(word: str, choices: Iterable[str], bare: bool = False) -> str:
+    """``"; did you mean X?"`` (or just ``X`` with ``bare``) when one of ``choices`` is close to
+    ``word`` (difflib), else ``""``."""
+    close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1)
+    if not close:
+        return ""
+    return close[0] if bare else f"; did you mean {close[0]}?"
+
+
+def check_known(options, known: Iterable[str], what: str, flag: str = "--option") -> None:
+    """Raise an :class:`InputError` if ``options`` (a mapping or names) has a key not in ``known``:
+    ``<flag> <key> (did you mean X?): not <what> (valid keys: ...)``, a hint for every close key."""
     known = sorted(set(known))
-    unknown = sorted(set(options) - set(known))
+    unknown = [k for k in options if k not in known]
     if unknown:
-        valid = ", ".join(known) if known else "none"
-        raise InputError(f"{flag} {', '.join(unknown)}: not an option of {what} (valid: {valid})")
+        keys = ", ".join(f"{k} (did you mean {close}?)" if (close := did_you_mean(k, known, bare=True))
+                         else str(k) for k in unknown)
+        raise InputError(f"{flag} {keys}: not {what} (valid keys: {', '.join(known) or 'none'})")
 
 
 _TYPE_NAMES = {int: "an integer", float: "a number", bool: "true or false", str: "a text"}
@@ -81,7 +93,8 @@ _TYPE_NAMES = {int: "an integer", float: "a number", bool: "true or false", str:
 def typed(value, kind, what: str):
     """``value`` (as :func:`parse_value` typed it) checked against ``kind`` (int, float, bool, str
     or None for any), with the parser's rules and no silent rounding: ``2.7`` or ``2.0`` is not an
-    int, ``true`` is not a number, an int is a valid float (``3`` -> 3.0), and any scalar is a
+    int, ``true`` is not a number, NaN and infinities are not numbers, an int is a valid float
+    (``3`` -> 3.0), and any scalar is a
     valid str (``30`` -> ``"30"``). A str ``value`` for an int, float or bool is first typed by
     :func:`parse_value` (``"3"`` -> 3, as on the command line), so text typed through the Python
     API agrees with the CLI. Anything else is an InputError starting with ``what``
@@ -99,6 +112,8 @@ def typed(value, kind, what: str):
     elif kind is float:
         ok = isinstance(value, (int, float)) and not is_bool
         value = float(value) if ok else value
+        if ok and not math.isfinite(value):
+            raise InputError(f"{what}: expected a finite number, got {value}")
     elif kind is str:
         ok = value is None or isinstance(value, (str, int, float))
         value = value if isinstance(value, str) else json.dumps(value)

@@ -32,13 +32,29 @@ checked (with :func:`pfbench.options.typed`: ``runs=2.7`` is not an int). Readin
 key (``ctx.option``, ``ctx.options[...]``, ``in``, ``.get``) is a bug in the recipe and raises
 ``RuntimeError``, so the declarations cannot rot. A recipe that reads ``--data FILE`` says
 ``reads_data=True``; ``--data`` for any other recipe is an InputError.
+
+Result sets are all-or-nothing
+------------------------------
+:func:`run` holds an exclusive lock ``results/<paper>/.<name>.lock`` (:func:`pfbench.procs.exclusive_lock`:
+a second identical ``pfbench reproduce`` on the same ``--out`` is refused naming the holder's PID;
+the kernel drops the lock of a killed run, so the next run takes it over). The recipe writes every
+artefact (``ctx.write_table``/``write_figure``/``write_json``) into a staging directory
+``results/<paper>/.<name>.staging@<pid>/``; only when the recipe has finished are the artefacts
+hashed (SHA-256), moved into ``results/<paper>/``, and the provenance record ``<name>.json``
+written LAST with an ``"artefacts": {file: sha256}`` map. A run killed at any moment therefore
+leaves either the previous complete set (plus a staging directory that the next run removes), or
+new artefacts beside an older record whose checksums no longer match them -- which
+:func:`write_report` reports as damaged, as it does a record that is not valid JSON or an artefact
+that is missing. Recipes with no result are listed as not run.
 """
 from __future__ import annotations
 
 import importlib
 import json
 import math
+import os
 import pkgutil
+import shutil
 import sys
 import time
 from collections.abc import Mapping
@@ -48,7 +64,8 @@ from typing import Any, Callable, Iterable
 
 from . import io
 from .errors import InputError, PfbenchError  # noqa: F401 - PfbenchError re-exported for recipes
-from .options import check_known, typed
+from .options import check_known, did_you_mean, typed
+from .procs import exclusive_lock, lock_path
 from .provenance import provenance
 
 PAPERS = {
@@ -115,7 +132,7 @@ class Recipe:
     def check_options(self, options: dict) -> dict:
         """``options`` validated against the declarations: unknown keys and badly typed values
         are InputErrors; returns the options with declared types applied."""
-        check_known(options, self.option_keys, f"recipe {self.id}")
+        check_known(options, self.option_keys, f"an option of recipe {self.id}")
         return {k: typed(v, self.declared(k).type, f"--option {k}={_text(v)}") for k, v in options.items()}
 
     @property
@@ -185,7 +202,44 @@ def resolve(name: str) -> Recipe:
     if len(matches) > 1:
         ids = ", ".join(r.id for r in matches)
         raise InputError(f"recipe name {name!r} is ambiguous: use one of {ids}")
-    raise InputError(f"unknown recipe {name!r}; `pfbench list` shows the recipes")
+    hint = did_you_mean(name, list(reg) + [a for r in reg.values() for a in r.aliases]
+                        + [r.name for r in reg.values()])
+    raise InputError(f"unknown recipe {name!r}{hint} (`pfbench list` shows the recipes)")
+
+
+def select(paper: str | None = None) -> list[Recipe]:
+    """Every registered recipe, or those of ``paper``; an unknown paper is an InputError listing
+    the papers (a selector that matches nothing is an error, never an empty run)."""
+    reg = discover()
+    if paper is None:
+        return list(reg.values())
+    if paper not in PAPERS:
+        hint = did_you_mean(paper, PAPERS)
+        raise InputError(f"--paper {paper!r}: no such paper{hint} (papers: {', '.join(PAPERS)})")
+    recs = [r for r in reg.values() if r.paper == paper]
+    if not recs:
+        raise InputError(f"--paper {paper}: no recipes registered for this paper")
+    return recs
+
+
+def needs_met(needs: Iterable[str]) -> bool:
+    """Whether the optional tools a recipe needs (:attr:`Recipe.needs`) are installed."""
+    for need in needs:
+        if need == "mcu-tools":
+            try:
+                from .mcu import toolchain
+            except ImportError:
+                return False
+            if not toolchain.available():
+                return False
+        else:
+            return False
+    return True
+
+
+def needs_hint(needs: Iterable[str]) -> str:
+    """How to install what a recipe needs, e.g. "needs `make mcu-tools`"."""
+    return "needs " + ", ".join(f"`make {n}`" for n in needs)
 
 
 @dataclass
@@ -249,6 +303,8 @@ class RecipeContext:
     comparisons: list[Comparison] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     extra: dict = field(default_factory=dict)
+    stage_dir: Path | None = None   # set by run(): artefacts are written here, then moved
+    staged: dict = field(default_factory=dict)   # final path (str) -> staged path
 
     def __post_init__(self):
         if not isinstance(self.options, RecipeOptions):
@@ -259,11 +315,21 @@ class RecipeContext:
         return Path(self.out_root) / self.recipe.paper
 
     def path(self, filename: str) -> Path:
+        """The final path of artefact ``filename`` (``results/<paper>/<filename>``)."""
         return self.out_dir / filename
 
-    def _record(self, path: Path) -> Path:
-        self.outputs.append(str(path))
-        return path
+    def _target(self, filename: str) -> Path:
+        """Where artefact ``filename`` is written now: the staging directory during :func:`run`."""
+        return (self.stage_dir if self.stage_dir is not None else self.out_dir) / filename
+
+    def _record(self, written: Path) -> Path:
+        final = self.path(written.name)
+        if str(final) in self.outputs:
+            raise RuntimeError(f"recipe {self.recipe.id} writes {written.name} twice")  # a bug
+        self.outputs.append(str(final))
+        if written != final:
+            self.staged[str(final)] = written
+        return written
 
     # ----- options ---------------------------------------------------------------------
     def option(self, key: str, default, cast=None):
@@ -281,18 +347,21 @@ class RecipeContext:
         return typed(value, kind, f"--option {key}={_text(value)}")
 
     # ----- outputs -------------------------------------------------------------------
+    # Each writer returns the path the file has now (in the staging directory while the recipe
+    # runs); ``outputs`` lists the final paths.
     def write_table(self, name: str, frame, parquet: bool = False) -> Path:
         """Write a DataFrame as ``<name>.csv`` (and ``.parquet`` if asked)."""
-        p = self._record(io.write_csv(self.path(f"{name}.csv"), frame))
+        p = self._record(io.write_csv(self._target(f"{name}.csv"), frame))
         if parquet:
-            self._record(io.write_parquet(self.path(f"{name}.parquet"), frame))
+            self._record(io.write_parquet(self._target(f"{name}.parquet"), frame))
         return p
 
     def write_figure(self, name: str, fig) -> Path:
-        return self._record(io.write_figure(self.path(f"{name}.png"), fig))
+        return self._record(io.write_figure(self._target(f"{name}.png"), fig))
 
     def write_json(self, name: str, obj) -> Path:
-        return self._record(io.write_json(self.path(f"{name}.data.json"), obj))
+        """Write ``obj`` as strict JSON ``<name>.data.json`` (see :mod:`pfbench.io`)."""
+        return self._record(io.write_json(self._target(f"{name}.data.json"), obj))
 
     # ----- ledger ----------------------------------------------------------------------
     def compare(self, quantity: str, ours, paper=None, unit: str = "", note: str = "") -> None:
@@ -345,45 +414,220 @@ def check_data(recs: list[Recipe], data) -> None:
         raise InputError(f"--data: {which} reads no data (recipes that take a log: {readers})")
 
 
+STAGING = ".staging@"   # results/<paper>/.<name>.staging@<pid>/
+
+
+def _lock_path(out_dir: Path, name: str) -> Path:
+    return lock_path(out_dir / f".{name}")
+
+
+def _leftovers(out_dir: Path, name: str) -> list[Path]:
+    """Staging directories and temporary files of recipe ``name`` left by an interrupted run."""
+    try:
+        entries = list(out_dir.iterdir())
+    except OSError:
+        return []
+    stage, tmp = f".{name}{STAGING}", f".{name}.json."
+    return [e for e in entries if (e.name.startswith(stage) and e.name[len(stage):].isdigit())
+            or (e.name.startswith(tmp) and e.name.endswith(".tmp"))]
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
+def _commit(ctx: RecipeContext, record: dict) -> None:
+    """Move the staged artefacts into place and write the provenance record last, with the
+    SHA-256 of every artefact (see the module docstring)."""
+    out_dir = ctx.out_dir
+    staged, artefacts = [], {}
+    for out in ctx.outputs:
+        final = Path(out)
+        src = ctx.staged.get(str(out), final)   # else written in place (e.g. a resumable store)
+        if src != final:
+            staged.append((src, final))
+        try:
+            rel = final.relative_to(out_dir).as_posix()
+        except ValueError:
+            rel = str(final)
+        try:
+            artefacts[rel] = io.sha256(src)
+        except OSError as exc:
+            raise RuntimeError(f"recipe {ctx.recipe.id} lists output {out} but it cannot be "
+                               f"read: {exc}") from None   # a bug in the recipe
+    record["artefacts"] = artefacts
+    for src, final in staged:
+        try:
+            os.replace(src, final)
+        except OSError as exc:
+            raise io.output_error(final, exc) from None
+    io.write_json(ctx.path(f"{ctx.recipe.name}.json"), record)
+
+
 def run(rec: Recipe, *, full: bool = False, backend: str = "numba", seed: int = 0,
         out_root: str | Path = "results", data: str | Path | None = None, quiet: bool = False,
         options: dict | None = None) -> RecipeContext:
-    """Run one recipe and write its provenance record. Returns the filled context.
+    """Run one recipe and write its result set (artefacts, then the provenance record). Returns
+    the filled context.
 
     Options are validated first (:meth:`Recipe.check_options`), and ``data`` is refused for a
-    recipe that does not declare ``reads_data``, so bad input fails before any work.
+    recipe that does not declare ``reads_data``, so bad input fails before any work. The output
+    is locked for the whole run (an InputError naming the PID if another process writes it) and
+    written all-or-nothing (module docstring); leftovers of an interrupted run are removed first.
     """
     opts = rec.check_options(dict(options or {}))
     check_data([rec], data)
-    ctx = RecipeContext(recipe=rec, full=full, backend=backend, seed=seed, out_root=Path(out_root),
-                        data=Path(data) if data else None, options=opts, quiet=quiet)
-    t0 = time.perf_counter()
-    rec.func(ctx)
-    elapsed = time.perf_counter() - t0
-    record = provenance(
-        recipe=rec.id, title=rec.title, mode="full" if full else "quick", backend=backend,
-        seed=seed, data=str(ctx.data) if ctx.data else None, options=dict(ctx.options),
-        elapsed_s=round(elapsed, 3), outputs=ctx.outputs,
-        comparisons=[c.as_dict() for c in ctx.comparisons], notes=ctx.notes, extra=ctx.extra)
-    io.write_json(ctx.path(f"{rec.name}.json"), record)
+    out_dir = io.make_dirs(Path(out_root) / rec.paper)
+    with exclusive_lock(out_dir / f".{rec.name}", f"{out_dir / rec.name}.* (recipe {rec.id})"):
+        for left in _leftovers(out_dir, rec.name):
+            _remove(left)
+        stage = io.make_dirs(out_dir / f".{rec.name}{STAGING}{os.getpid()}")
+        try:
+            ctx = RecipeContext(recipe=rec, full=full, backend=backend, seed=seed,
+                                out_root=Path(out_root), data=Path(data) if data else None,
+                                options=opts, quiet=quiet, stage_dir=stage)
+            t0 = time.perf_counter()
+            rec.func(ctx)
+            elapsed = time.perf_counter() - t0
+            record = provenance(
+                recipe=rec.id, title=rec.title, mode="full" if full else "quick", backend=backend,
+                seed=seed, data=str(ctx.data) if ctx.data else None, options=dict(ctx.options),
+                elapsed_s=round(elapsed, 3), outputs=ctx.outputs,
+                comparisons=[c.as_dict() for c in ctx.comparisons], notes=ctx.notes,
+                extra=ctx.extra)
+            _commit(ctx, record)
+        finally:
+            _remove(stage)
+    ctx.stage_dir = None
     ctx.extra["elapsed_s"] = elapsed
     return ctx
 
 
-def write_report(out_root: str | Path = "results") -> Path:
-    """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``."""
+# --------------------------------------------------------------------------- report
+@dataclass
+class Problem:
+    """One line of the report's "Not reproduced / damaged" section."""
+
+    recipe: str
+    what: str
+    redo: str
+    damaged: bool = True     # a damaged/incomplete result (a warning; ``report --strict`` fails)
+
+    def line(self) -> str:
+        return f"`{self.recipe}`: {self.what}; {self.redo}"
+
+
+def verify(path: str | Path, recipe_id: str) -> tuple[dict | None, list[str]]:
+    """Read the provenance record ``path`` of ``recipe_id`` and check it against the files on
+    disk: ``(record or None, [problems])``. A problem is an unreadable/garbage record, a record of
+    another recipe, a record without checksums (written before they were recorded), a missing
+    artefact or one whose SHA-256 differs from the record's."""
+    path = Path(path)
+    try:
+        rec = io.loads(path.read_text(errors="replace"), str(path))
+    except OSError as exc:
+        return None, [f"record {path} cannot be read ({exc.strerror or exc})"]
+    except PfbenchError as exc:
+        return None, [f"record {path} is damaged: {str(exc).split(': ', 1)[-1]}"]
+    if not isinstance(rec, dict) or not isinstance(rec.get("recipe"), str):
+        return None, [f"record {path} is damaged: not a provenance record"]
+    if rec["recipe"] != recipe_id:
+        return None, [f"record {path} is damaged: it names recipe {rec['recipe']!r}"]
+    arts = rec.get("artefacts")
+    if not isinstance(arts, dict):
+        return rec, [f"record {path} has no artefact checksums (written by an older pfbench or "
+                     "edited): its files cannot be verified"]
+    problems, bad = [], []
+    for rel, digest in arts.items():
+        f = path.parent / rel
+        try:
+            ok = io.sha256(f) == digest
+        except FileNotFoundError:
+            problems.append(f"{f} is missing")
+            continue
+        except OSError as exc:
+            problems.append(f"{f} cannot be read ({exc.strerror or exc})")
+            continue
+        if not ok:
+            bad.append(rel)
+    if bad:
+        problems.append(f"{', '.join(bad)} do{'es' if len(bad) == 1 else ''} not match the record "
+                        f"(seed {rec.get('seed')}, {rec.get('created_utc')}): the files were changed "
+                        "or a later run was interrupted")
+    return rec, problems
+
+
+def check_results(out_root: str | Path = "results") -> tuple[list[dict], list[Problem]]:
+    """Every verified provenance record under ``out_root`` and every problem (damaged or
+    incomplete result sets, recipes with no result)."""
     out_root = Path(out_root)
-    records = []
+    reg = discover()
+    records, problems = [], []
+    seen = set()
     for paper in PAPERS:
-        for p in sorted((out_root / paper).glob("*.json")):
-            if p.name.endswith(".data.json"):
+        d = out_root / paper
+        try:
+            files = sorted(p for p in d.glob("*.json") if not p.name.endswith(".data.json"))
+        except OSError:
+            files = []
+        for p in files:
+            rid = f"{paper}:{p.stem}"
+            redo = f"redo: `pfbench reproduce {rid}`"
+            rec, probs = verify(p, rid)
+            if rid not in reg and rec is None:
+                problems.append(Problem(rid, "; ".join(probs) + " (no such recipe)", "remove the file"))
                 continue
-            try:
-                rec = json.loads(p.read_text())
-            except (OSError, ValueError):
-                continue
-            if isinstance(rec, dict) and "recipe" in rec:
+            seen.add(rid)
+            if probs:
+                problems.append(Problem(rid, "; ".join(probs), redo))
+            if rec is not None and not probs:
                 records.append(rec)
+            elif rec is not None:
+                rec = dict(rec, damaged=True)
+                records.append(rec)
+            if any(_leftovers(d, p.stem)) and not _locked(d, p.stem):
+                problems.append(Problem(rid, "an interrupted run left a staging directory (the "
+                                        "result above is the previous complete one)",
+                                        "it is removed by the next `pfbench reproduce " + rid + "`",
+                                        damaged=False))
+    for rid, r in reg.items():
+        if rid in seen:
+            continue
+        if r.needs and not needs_met(r.needs):
+            problems.append(Problem(rid, f"not run: {needs_hint(r.needs)}",
+                                    f"then `pfbench reproduce {rid}`", damaged=False))
+        else:
+            problems.append(Problem(rid, "not run (no result)", f"run `pfbench reproduce {rid}`",
+                                    damaged=False))
+    return records, problems
+
+
+def _locked(out_dir: Path, name: str) -> bool:
+    """Whether a run of recipe ``name`` holds its lock now."""
+    import fcntl
+
+    try:
+        fd = os.open(_lock_path(out_dir, name), os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return False
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+
+
+def write_report(out_root: str | Path = "results") -> tuple[Path, list[Problem]]:
+    """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``, each
+    verified against its artefacts (:func:`verify`). Returns the path and the problems, which the
+    report lists in a "Not reproduced / damaged" section."""
+    out_root = Path(out_root)
+    records, problems = check_results(out_root)
     lines = ["# pfbench results report", "",
              "Generated by `pfbench report` from the provenance records under `results/`.", ""]
     for paper, title in PAPERS.items():
@@ -392,30 +636,37 @@ def write_report(out_root: str | Path = "results") -> Path:
             continue
         lines += [f"## {paper}: {title}", ""]
         for r in recs:
-            lines.append(f"### `{r['recipe']}`: {r.get('title', '')}")
+            flag = " (DAMAGED: see below)" if r.get("damaged") else ""
+            lines.append(f"### `{r['recipe']}`: {r.get('title', '')}{flag}")
             lines.append("")
             lines.append(f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
                          f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, "
                          f"{r.get('created_utc')}")
             lines.append("")
-            comps = r.get("comparisons") or []
+            comps = [c for c in r.get("comparisons") or [] if isinstance(c, dict)]
             if comps:
                 lines.append("| quantity | ours | paper | deviation | note |")
                 lines.append("|---|---|---|---|---|")
                 for c in comps:
                     dev = c.get("deviation")
-                    q = c["quantity"] + (f" [{c['unit']}]" if c.get("unit") else "")
+                    q = str(c.get("quantity")) + (f" [{c['unit']}]" if c.get("unit") else "")
                     ours, pap = c.get("ours"), c.get("paper")
+                    if ours is None and c.get("ours" + io.NONFINITE_SUFFIX):
+                        ours = c["ours" + io.NONFINITE_SUFFIX]
                     ours = f"{ours:.4g}" if isinstance(ours, float) else ours
                     pap = f"{pap:.4g}" if isinstance(pap, float) else ("-" if pap is None else pap)
-                    lines.append(f"| {q} | {ours} | {pap} | "
-                                 f"{'' if dev is None else f'{dev:+.1%}'} | {c.get('note', '')} |")
+                    dev = f"{dev:+.1%}" if isinstance(dev, (int, float)) else ""
+                    lines.append(f"| {q} | {ours} | {pap} | {dev} | {c.get('note', '')} |")
                 lines.append("")
             for n in r.get("notes") or []:
                 lines.append(f"- {n}")
-            outs = [Path(o).name for o in r.get("outputs") or []]
+            outs = [Path(str(o)).name for o in r.get("outputs") or []]
             if outs:
                 lines.append("")
                 lines.append("Outputs: " + ", ".join(f"`{o}`" for o in outs))
             lines.append("")
-    return io.write_text(out_root / "REPORT.md", "\n".join(lines) + "\n")
+    if problems:
+        lines += ["## Not reproduced / damaged", ""]
+        lines += [f"- {p.line()}" for p in problems]
+        lines.append("")
+    return io.write_text(out_root / "REPORT.md", "\n".join(lines) + "\n"), problems

@@ -68,7 +68,8 @@ def test_user_error_one_line_in_a_real_process():
     assert r.returncode == 2 and "unknown model" in _one_error_line(r.stderr)
 
 
-@pytest.mark.parametrize("exc", [ValueError("a bug"), RuntimeError("a bug"), KeyError("a bug")])
+@pytest.mark.parametrize("exc", [ValueError("a bug"), RuntimeError("a bug"), KeyError("a bug"),
+                                 EOFError("a bug")])  # click turns EOFError into Abort: not a Ctrl-C
 def test_internal_error_shows_traceback_exit_1(monkeypatch, exc):
     # An exception that is not a PfbenchError is a bug: traceback + exit 1, never exit 2.
     from pfbench import models

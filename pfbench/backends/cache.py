@@ -15,15 +15,29 @@ anywhere in the package, or in the model's file, changes the stamp, and numba re
 loading old code. The entries live under ``$PFBENCH_CACHE_DIR/numba`` (default
 ``~/.cache/pfbench/numba``), apart from numba's own cache.
 
+Damaged entries heal themselves. Every function compiled through :func:`njit` gets a
+:class:`HealingFunctionCache` (set on that dispatcher only: numba's classes and the caches of code
+outside pfbench are untouched). An index (``.nbi``) or data (``.nbc``) file that cannot be read or
+unpickled (truncated, empty, garbage, a directory in its place, unreadable), or whose code cannot be
+rebuilt, is removed, reported by one :class:`CacheRepairWarning` line on stderr naming the file, and
+the function is recompiled (and saved again), so the result is that of a clean cache. numba writes
+each file to a temporary name and renames it; pfbench also writes the data file before the index
+entry that points to it and stores the entry's key inside the data file, so a writer killed (or
+racing another process) between the two leaves an entry that is recompiled, never one that loads
+the wrong code.
+
 :func:`install` runs when ``pfbench`` is imported, before any pfbench module defines a cached
 function.
 """
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
+import shutil
 import sys
 import threading
+import warnings
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
@@ -125,6 +139,159 @@ def _locator_class():
     return PackageKeyedLocator
 
 
+class CacheRepairWarning(UserWarning):
+    """A damaged compiled-code cache file (numba entry or generated kernel) was removed and rebuilt."""
+
+
+_REPAIRED: set[str] = set()
+
+
+def warn_repaired(path, what: str, exc: BaseException | str | None = None) -> None:
+    """Report a repaired cache file once per process, as one warning line that names the file.
+
+    The warning is attributed to ``path`` itself at line 0, so Python's default format prints one
+    line ``<path>:0: CacheRepairWarning: damaged <what> (<reason>): removed and rebuilt`` and no
+    source line; ``-W ignore::pfbench.backends.cache.CacheRepairWarning`` silences it.
+    """
+    reason = f" ({exc})" if isinstance(exc, str) else ""
+    if isinstance(exc, BaseException):
+        detail = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        detail = " ".join(detail.split())[:120]
+        reason = f" ({type(exc).__name__}{': ' + detail if detail else ''})"
+    _warn_once(path, f"damaged {what}{reason}: removed and rebuilt")
+
+
+def _warn_once(path, message: str) -> None:
+    path = str(path)
+    if path in _REPAIRED:
+        return
+    _REPAIRED.add(path)
+    warnings.warn_explicit(message, CacheRepairWarning, path, 0, module=__name__)
+
+
+def remove_path(path) -> None:
+    """Remove a file, symlink or directory; a missing path is fine, other failures are ignored
+    (the caller rebuilds anyway, and a later write reports what is wrong with the directory)."""
+    try:
+        if os.path.isdir(path) and not os.path.islink(path):
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            os.unlink(path)
+    except OSError:
+        pass
+
+
+_HEALING_CLASS = None
+
+
+def _healing_cache_class():
+    """Build (once) the numba cache classes used by every :func:`njit` function of pfbench."""
+    global _HEALING_CLASS
+    if _HEALING_CLASS is not None:
+        return _HEALING_CLASS
+    from numba.core import caching
+
+    class HealingIndexDataCacheFile(caching.IndexDataCacheFile):
+        """numba's index + data files, with damaged files removed instead of raised, the data file
+        written before the index entry, and the entry's key stored in the data file."""
+
+        def _discard(self, path, exc) -> None:
+            remove_path(path)
+            warn_repaired(path, "numba cache entry", exc)
+
+        def _load_index(self):
+            try:
+                overloads = super()._load_index()
+                if not isinstance(overloads, dict):
+                    raise TypeError(f"the index holds a {type(overloads).__name__}, not a dict")
+                return overloads
+            except FileNotFoundError:
+                return {}
+            except Exception as exc:  # noqa: BLE001 - any unreadable index is a damaged one
+                self._discard(self._index_path, exc)
+                return {}
+
+        def load_entry(self, key):
+            """``(data file path, payload)`` of the entry for ``key``, or None (then recompile)."""
+            name = self._load_index().get(key)
+            if not isinstance(name, str):
+                return None
+            path = self._data_path(name)
+            try:
+                stored = self._load_data(name)
+            except FileNotFoundError:  # removed, or its writer was killed before writing it
+                return None
+            except Exception as exc:  # noqa: BLE001 - truncated, garbage, a directory, unreadable
+                self._discard(path, exc)
+                return None
+            if not (isinstance(stored, tuple) and len(stored) == 2):
+                self._discard(path, TypeError("not a pfbench cache entry"))
+                return None
+            if stored[0] != key:  # two writers raced for one file name: a miss, not damage
+                return None
+            return path, stored[1]
+
+        def load(self, key):
+            found = self.load_entry(key)
+            return None if found is None else found[1]
+
+        def save(self, key, data):
+            overloads = self._load_index()
+            name = overloads.get(key)
+            if not isinstance(name, str):
+                used = set(overloads.values())
+                name = next(n for n in map(self._data_name, itertools.count(1)) if n not in used)
+            path = self._data_path(name)
+            if os.path.isdir(path) and not os.path.islink(path):
+                remove_path(path)  # os.replace cannot put a file over a directory
+            self._save_data(name, (key, data))  # data first: an index entry never precedes its data
+            if overloads.get(key) != name:
+                overloads[key] = name
+                self._save_index(overloads)
+
+        def _save_index(self, overloads):
+            if os.path.isdir(self._index_path) and not os.path.islink(self._index_path):
+                remove_path(self._index_path)
+            super()._save_index(overloads)
+
+    class HealingFunctionCache(caching.FunctionCache):
+        """numba's per-function disk cache with :class:`HealingIndexDataCacheFile` and a rebuild
+        failure treated as a damaged entry. A cache directory that cannot be written is reported
+        once and the function runs from memory."""
+
+        def __init__(self, py_func):
+            super().__init__(py_func)
+            # own file names (".pf.nbi", ".pf.<n>.nbc"): the data files hold (key, data), which
+            # numba's own FunctionCache must never try to load
+            self._cache_file = HealingIndexDataCacheFile(
+                cache_path=self._cache_path, filename_base=self._impl.filename_base + ".pf",
+                source_stamp=self._impl.locator.get_source_stamp())
+
+        def _load_overload(self, sig, target_context):
+            if not self._enabled:
+                return None
+            found = self._cache_file.load_entry(self._index_key(sig, target_context.codegen()))
+            if found is None:
+                return None
+            path, payload = found
+            try:
+                return self._impl.rebuild(target_context, payload)
+            except Exception as exc:  # noqa: BLE001 - unpickled, but not code numba can rebuild
+                self._cache_file._discard(path, exc)
+                return None
+
+        def save_overload(self, sig, data):
+            try:
+                super().save_overload(sig, data)
+            except OSError as exc:
+                _warn_once(self._cache_path, f"cannot write the compiled-code cache here "
+                           f"({type(exc).__name__}: {exc.strerror or exc}); continuing without it")
+                self.disable()
+
+    _HEALING_CLASS = HealingFunctionCache
+    return _HEALING_CLASS
+
+
 _INSTALLED = False
 
 
@@ -149,7 +316,16 @@ def njit(*args, **options):
     import numba
 
     install()
-    options.setdefault("cache", True)
-    if args and callable(args[0]) and len(args) == 1 and not options.keys() - {"cache"}:
-        return numba.njit(**options)(args[0])
-    return numba.njit(*args, **options)
+    cache = options.pop("cache", True)
+    if args and callable(args[0]) and len(args) == 1:
+        return _healing(numba.njit(**options)(args[0]), cache)
+    decorator = numba.njit(*args, **options)
+    return lambda func: _healing(decorator(func), cache)
+
+
+def _healing(dispatcher, cache: bool):
+    """Enable the disk cache of a dispatcher with the self-healing class of
+    :func:`_healing_cache_class` (what ``enable_caching`` does with numba's own class)."""
+    if cache and hasattr(dispatcher, "_cache") and hasattr(dispatcher, "py_func"):
+        dispatcher._cache = _healing_cache_class()(dispatcher.py_func)
+    return dispatcher

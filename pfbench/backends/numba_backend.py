@@ -15,6 +15,13 @@ package, the model's module source and the numba/NumPy versions, so editing anyt
 new module and a fresh compile, never a stale kernel (see :mod:`pfbench.backends.cache`).
 
 Cache location: ``$PFBENCH_CACHE_DIR`` (default ``~/.cache/pfbench``) ``/kernels``.
+
+A generated file that is damaged (truncated, garbage, not UTF-8, a directory in its place) no longer
+matches the text pfbench generates: it is rewritten (atomically: temporary file + rename, so a
+concurrent process never reads half a file) with one
+:class:`~pfbench.backends.cache.CacheRepairWarning` line. The module is executed from the generated
+text itself, never from the file or a ``__pycache__`` byte-code copy, so a file damaged after that
+check cannot break the import either.
 """
 from __future__ import annotations
 
@@ -131,16 +138,36 @@ def kernel_module(model_or_cls, family: str = "particle"):
         text = body + footer
         if not disk_cacheable(cls):
             text = text.replace("@_njit(nogil=True)", "@_njit(nogil=True, cache=False)")
-        if not path.exists() or path.read_text() != text:
-            write_text(path, text)
+        _ensure_file(path, text)
         modname = f"pfbench_kernel_{name}"
         spec = importlib.util.spec_from_file_location(modname, path)
         mod = importlib.util.module_from_spec(spec)
         # numba's cache rebuilds a kernel's environment by importing its module by name
         sys.modules[modname] = mod
-        spec.loader.exec_module(mod)
+        try:  # the text we generated, not whatever the file (or a stale .pyc) holds by now
+            exec(compile(text, str(path), "exec"), mod.__dict__)
+        except BaseException:
+            sys.modules.pop(modname, None)
+            raise
         _MODULES[(family, cls)] = mod
         return mod
+
+
+def _ensure_file(path: Path, text: str) -> None:
+    """Make ``path`` hold exactly ``text``; rewrite (and warn about) a damaged file."""
+    data = text.encode("utf-8")
+    try:
+        if path.read_bytes() == data:
+            return
+        damage: BaseException | None = None
+    except FileNotFoundError:
+        write_text(path, text)
+        return
+    except OSError as exc:  # a directory in its place, unreadable
+        damage = exc
+    cache.remove_path(path)
+    write_text(path, text)
+    cache.warn_repaired(path, "generated kernel file", damage or "content differs from the generated text")
 
 
 _WARM: set = set()

@@ -33,7 +33,10 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         the model's declared linear-Gaussian substructure, [Schon2005]), ``guided`` (the model's
         proposal or the locally optimal one) or ``kalman`` ((extended) Kalman filter on a model
         whose every state is in its linear substructure).
-    n_particles : N_p, total number of particles (required by every method but ``kalman``).
+    n_particles : N_p, total number of particles (required by every method but ``kalman``). A run
+        whose estimated memory does not fit what the process may use is refused before anything
+        is allocated (InputError with both numbers and the largest N_p that fits, see
+        :mod:`pfbench.resources`).
     n_filters : N_f, MultiPDF sub-filters (round(N_p/N_f) particles each); 1 otherwise.
     resampling : a :class:`~pfbench.resampling.Scheme` name.
     ess_threshold : SIR and guided: resample when N_eff < ess_threshold * N_p; a fraction in
@@ -54,6 +57,10 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     n_particles = _count(n_particles, "n_particles")
     n_filters = _count(n_filters, "n_filters")
     y, u = check_inputs(model, y, u)
+    from ..resources import check_filter_memory  # refuse before allocating what cannot fit
+
+    check_filter_memory(model, m.label, n_particles, n_filters=n_filters, n_steps=y.shape[0], dtype=dtype,
+                        backend=backend, store_particles=store_particles, flag="n_particles")
     if m.family == "particle":
         from .particle import run_particle
 

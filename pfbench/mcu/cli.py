@@ -1,12 +1,12 @@
 """``pfbench mcu ...``: Cortex-M4 cost model commands."""
 from __future__ import annotations
 
-import json
 import math
 
 import click
 
 from ..filters.methods import PARTICLE_METHODS
+from ..io import to_json
 from ..options import parse_key_values
 from ..resampling import SCHEMES
 
@@ -75,7 +75,7 @@ def estimate(model_name, steps, particles, precision, method, filters, resamplin
                 calibrated=not no_calibration, resampling=resampling, history=not no_history,
                 model_params=model_params)
     if as_json:
-        click.echo(json.dumps(r, indent=2, default=float))
+        click.echo(to_json(r, indent=2, default=float))
         return
     click.echo(_format(r))
 
@@ -112,7 +112,7 @@ def calibrate(cycles_file, as_json):
 
     c = _cal(cycles_file)
     if as_json:
-        click.echo(json.dumps(c, indent=2, default=float))
+        click.echo(to_json(c, indent=2, default=float))
         return
     click.echo(f"fit: {c['method']}")
     click.echo("efficiency: " + ", ".join(f"{k} {v:.4f}" for k, v in c["efficiency"].items()))

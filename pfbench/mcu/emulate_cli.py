@@ -4,7 +4,6 @@ Needs the optional toolchain (``make mcu-tools``); without it the command says s
 """
 from __future__ import annotations
 
-import json
 
 import click
 
@@ -55,7 +54,9 @@ def emulate(precision, steps, particles, configs, opt, clock_mhz, seed, as_json)
     res = E.emulate(precision, steps, particles, configs=_parse_configs(configs),
                     clock_mhz=clock_mhz, seed=seed, opt=opt)
     if as_json:
-        click.echo(json.dumps(res, indent=2, default=float))
+        from ..io import to_json
+
+        click.echo(to_json(res, indent=2, default=float))
         return
     click.echo(f"{res['build']} ({precision}) {' '.join(res['cflags'][-4:])}  [{res['compiler']}]")
     click.echo(f"per particle-step: {res['instructions_per_particle_step']:.0f} instructions, "

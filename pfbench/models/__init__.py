@@ -16,6 +16,7 @@ import inspect
 import pkgutil
 
 from ..errors import InputError
+from ..options import check_known, typed
 from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 
 _REGISTRY: dict[str, type[StateSpaceModel]] = {}
@@ -59,13 +60,74 @@ def model_class(name: str) -> type[StateSpaceModel]:
         raise InputError(f"unknown model {name!r}; known models: {', '.join(names())}") from None
 
 
+_KINDS = {"float": float, "int": int, "bool": bool, "str": str}
+
+
+def _kind(param: inspect.Parameter):
+    """(type, None allowed) of a constructor parameter from its annotation (``float``,
+    ``float | None``) or else its default (``1.0`` -> float); (None, True) when it is anything else
+    (tuples, arrays, ...), which the model checks itself."""
+    ann = param.annotation
+    if isinstance(ann, type):
+        ann = ann.__name__
+    if isinstance(ann, str) and ann.strip():
+        parts = [a.strip() for a in ann.split("|")]
+        kinds = [_KINDS.get(a) for a in parts if a != "None"]
+        if len(kinds) == 1 and kinds[0] is not None:
+            return kinds[0], "None" in parts
+        return None, True
+    d = param.default
+    if d is inspect.Parameter.empty or d is None:
+        return None, True
+    for k in (bool, int, float, str):
+        if type(d) is k:
+            return k, False
+    return None, True
+
+
+def check_params(name: str, params: dict, flag: str = "--param") -> dict:
+    """``params`` checked against the constructor signature of model ``name`` BEFORE it is
+    built: an unknown key is an :class:`~pfbench.errors.InputError` listing the valid keys (with
+    a "did you mean" for a close one), and a scalar for a parameter typed (annotation or default)
+    as float/int/bool is checked by :func:`pfbench.options.typed` (``q=abc``, ``q=nan``,
+    ``version=2.5`` are refused naming ``flag``). Returns the params with those types applied."""
+    cls = model_class(name)
+    sig = inspect.signature(cls.__init__).parameters
+    names_ = [k for k, p in sig.items() if k != "self"
+              and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    if any(p.kind is p.VAR_KEYWORD for p in sig.values()):
+        return dict(params)
+    check_known(params, names_, f"a parameter of model {name!r}", flag)
+    out = {}
+    for k, v in params.items():
+        kind, none_ok = _kind(sig[k])
+        plain = v is None or type(v) in (str, int, float, bool)
+        if kind is None or kind is str or not plain or (v is None and none_ok):
+            out[k] = v
+            continue
+        text = v if isinstance(v, str) else json_text(v)
+        out[k] = typed(v, kind, f"{flag} {k}={text}")
+    return out
+
+
+def json_text(value) -> str:
+    import json
+
+    try:
+        return json.dumps(value)
+    except (TypeError, ValueError):
+        return str(value)
+
+
 def get(name: str, **params) -> StateSpaceModel:
     """Instantiate the registered model ``name`` with keyword parameters.
 
-    A parameter the model does not take or refuses (its constructor raises TypeError or
-    ValueError) is an :class:`~pfbench.errors.InputError` naming the model.
+    The parameters are first checked by :func:`check_params` (unknown keys, badly typed values);
+    a parameter the model refuses (its constructor raises TypeError or ValueError) is an
+    :class:`~pfbench.errors.InputError` naming the model.
     """
     cls = model_class(name)
+    params = check_params(name, params)
     try:
         return cls(**params)
     except (TypeError, ValueError) as exc:

@@ -8,7 +8,6 @@ in ``params: {version: 4}`` or as ``param: ["version=4"]`` texts, read by the sa
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -24,10 +23,19 @@ def _ints(value, name: str) -> list[int]:
     if isinstance(value, (list, tuple)):
         vals = [typed(v, int, name) for v in value]
     else:
-        vals = [typed(v, int, name) for v in str(value).replace(" ", "").split(",") if v]
+        items = str(value).replace(" ", "").split(",")
+        if "" in items and items != [""]:
+            raise InputError(f"{name} {value!r}: an empty item (two commas in a row, or a comma at "
+                             "either end); give values such as 100,200")
+        vals = [typed(v, int, name) for v in items if v]
     if not vals:
         raise InputError(f"{name} is empty")
     return vals
+
+
+def _check_grid_keys(opts: dict, where: str) -> None:
+    """Unknown grid-file keys: an error listing the valid keys, with "did you mean" if one is close."""
+    check_known(opts, GRID_KEYS, "a grid-file key", flag=where)
 
 
 def _names(value) -> list[str]:
@@ -40,7 +48,10 @@ def _grid_file(path: str) -> dict:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"grid file {p} does not exist")
-    text = p.read_text()
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"cannot read grid file {p}: {getattr(exc, 'strerror', None) or exc}") from None
     try:
         if p.suffix == ".toml":
             import tomllib
@@ -54,7 +65,7 @@ def _grid_file(path: str) -> dict:
     if not isinstance(data, dict):
         raise DataError(f"grid file {p} must hold a mapping of options")
     opts = {str(k).replace("-", "_"): v for k, v in data.items()}
-    check_known(opts, GRID_KEYS, f"grid file {p}", flag="key")
+    _check_grid_keys(opts, f"grid file {p}")
     return opts
 
 
@@ -72,9 +83,11 @@ _OPTIONS = [
     click.option("--runs", type=int, default=None, help="Monte Carlo runs per configuration."),
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
     click.option("--backend", default=None, help="numba (default) or numpy."),
-    click.option("--seed", type=int, default=None, help="Root seed (default 0)."),
-    click.option("--out", default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl."),
-    click.option("--workers", type=int, default=None, help="Worker processes (default: all cores)."),
+    click.option("--seed", type=int, default=None, help="Root seed, an integer >= 0 (default 0)."),
+    click.option("--out", default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl; "
+                                             "one sweep at a time may write it."),
+    click.option("--workers", type=int, default=None,
+                 help="Worker processes, >= 1 (default: all cores; 0 or less is an error)."),
     click.option("--executor", type=click.Choice(["local", "dask"]), default=None),
     click.option("--scheduler", default=None, help="Dask scheduler address tcp://host:port."),
     click.option("--overwrite", is_flag=True, help="Start afresh even if --out holds another sweep."),
@@ -171,7 +184,9 @@ def summarize_cmd(store, as_json, plot):
     summ = summarize_frame(frame, spec)
     tp = throughput(chunks, len(frame))
     if as_json:
-        click.echo(json.dumps(json.loads(summ.to_json(orient="records")), indent=1))
+        from ..io import to_json
+
+        click.echo(to_json(summ.to_dict(orient="records"), indent=1))
     else:
         click.echo(summ.to_csv(index=False), nl=False)
     click.echo(f"# {tp['tasks']} tasks, {tp['tasks_per_worker_s']:.1f} runs/s per worker "

@@ -81,6 +81,8 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
         raise InputError("the sweep has no configurations")
     if int(runs) < 1 or int(steps) < 1:
         raise InputError("--runs and --steps must be >= 1")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or int(seed) < 0:
+        raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
     resampling = Scheme.parse(resampling).label
     spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,

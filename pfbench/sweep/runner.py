@@ -8,7 +8,14 @@ Executors
 (and closed afterwards). Every executor computes the same numbers (see :mod:`.core`).
 
 At most ``2 x workers`` work units are in flight; Ctrl-C or SIGTERM stops the sweep after
-terminating the workers, keeping every unit already written; re-running resumes.
+terminating the workers, keeping every unit already written; re-running resumes. Local workers die
+with the sweep, also after ``kill -9`` (:func:`pfbench.procs.process_pool`).
+
+Before any work: ``workers`` must be >= 1 (``None``: all cores), the store must be ``.jsonl`` or
+``.parquet``, the largest task must fit in memory once per worker (:func:`check_sweep_memory`),
+and no other process may be writing the same store: a second sweep on the same ``out`` refuses
+with the holder's PID (:func:`pfbench.procs.exclusive_lock`; a lock left by a killed sweep is
+free again, the kernel releases it with its holder).
 """
 from __future__ import annotations
 
@@ -21,8 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError, PfbenchError
+from ..procs import exclusive_lock, process_pool
+from ..resources import path_error
 from .core import n_tasks, run_chunk, task_key, warm_up
-from .store import Store, export_parquet
+from .store import Store, check_store_name, export_parquet
 
 
 @dataclass
@@ -79,10 +88,39 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
         raise InputError(f"unknown executor {executor!r}; choose local or dask")
     if scheduler:
         executor = "dask"
-    workers = int(workers or cores())
-    if workers < 1:
-        raise InputError("--workers must be >= 1")
-    store = Store.open(out, spec, overwrite=overwrite)
+    if workers is None:
+        workers = cores()
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"--workers must be an integer >= 1 (omit it to use all cores), got {workers!r}")
+    check_store_name(out)
+    check_sweep_memory(spec, workers if executor == "local" else 1)
+    with exclusive_lock(out, f"sweep store {out}"):
+        return _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, max_units)
+
+
+def check_sweep_memory(spec: dict, workers: int) -> None:
+    """Refuse a sweep whose largest task does not fit in memory, per worker (before any work).
+
+    The memory of a task is :func:`pfbench.resources.filter_memory` of its configuration;
+    ``workers`` processes hold one task each at a time.
+    """
+    from .. import models
+    from ..resources import check_memory, filter_memory
+
+    model = models.get(spec["model"], **spec["params"])
+    procs = max(1, min(int(workers), int(spec["runs"])))
+    needs = [(filter_memory(model, m, n_filters=n_f, n_steps=spec["steps"], backend=spec["backend"]), m, n_p, n_f)
+             for m, n_p, n_f in spec["configs"]]
+    need, m, n_p, n_f = max(needs, key=lambda t: t[0].bytes(t[2]))  # if it fits, every task does
+    check_memory(need, n_p, what=f"a sweep task ({m}, N_f={n_f}, {spec['steps']} steps on {spec['model']})",
+                 processes=procs)
+
+
+def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, max_units):
+    try:
+        store = Store.open(out, spec, overwrite=overwrite)
+    except OSError as exc:
+        raise path_error(exc, out, "--out") from None
     total = n_tasks(spec)
     before = len(store.records)
     units = pending_units(spec, store)
@@ -118,7 +156,10 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
         store.close()
     wall = time.perf_counter() - t0
     if store.complete and Path(out).suffix == ".parquet":
-        export_parquet(store, out)
+        try:
+            export_parquet(store, out)
+        except OSError as exc:
+            raise path_error(exc, out, "--out") from None
     return SweepReport(Path(out), total, before, len(store.records) - before, wall)
 
 
@@ -139,11 +180,10 @@ def _timed_chunk(spec, r, cis):
 
 def _run_local(spec, units, workers, done):
     import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import FIRST_COMPLETED, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                               initializer=warm_up, initargs=(spec,))
+    pool = process_pool(workers, mp_context=mp.get_context("spawn"), initializer=warm_up, initargs=(spec,))
     todo = list(reversed(units))
     inflight = set()
     try:
@@ -156,8 +196,12 @@ def _run_local(spec, units, workers, done):
                 try:
                     recs, wall, who = fut.result()
                 except BrokenProcessPool:
-                    raise PfbenchError("a sweep worker process died; finished tasks are saved, "
-                                       "re-run the same command to resume") from None
+                    raise PfbenchError("a sweep worker process died (killed, e.g. by the out-of-memory "
+                                       "killer); finished tasks are saved, re-run the same command to "
+                                       "resume") from None
+                except MemoryError:
+                    raise PfbenchError("a sweep worker ran out of memory; finished tasks are saved; use "
+                                       "fewer --workers or smaller --particles, then re-run to resume") from None
                 done(recs, wall, who)
     except BaseException:
         for p in list(getattr(pool, "_processes", {}).values()):

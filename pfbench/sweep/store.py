@@ -14,7 +14,7 @@ mismatch or a missing/foreign header is reported as a corrupt or foreign store w
 
 ``X.parquet`` as ``--out``: the journal lives in ``X.parquet.journal`` and the Parquet table
 (one row per task, sorted by configuration and run) is written atomically when the sweep is
-complete. ``.jsonl`` (or any other suffix): the journal is the store.
+complete. ``.jsonl``: the journal is the store. Other suffixes are refused (:func:`check_store_name`).
 """
 from __future__ import annotations
 
@@ -32,13 +32,29 @@ MAGIC = "pfbench_sweep_store"
 FORMAT = 1
 
 
+#: the suffixes a store may have (``--out``)
+SUFFIXES = (".jsonl", ".parquet")
+
+
+def check_store_name(out) -> Path:
+    """``out`` must end in ``.jsonl`` or ``.parquet`` (an InputError naming --out otherwise)."""
+    out = Path(out)
+    if out.suffix not in SUFFIXES:
+        raise InputError(f"--out {out}: a sweep store must end in .jsonl (the journal) or .parquet "
+                         f"(table + journal), not {out.suffix or 'no suffix'!r}")
+    return out
+
+
 def journal_path(out) -> Path:
     out = Path(out)
     return out.with_name(out.name + ".journal") if out.suffix == ".parquet" else out
 
 
 def _dumps(obj) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
+    """Strict JSON (non-finite numbers as null + a note, :func:`pfbench.io.strict`) for journal lines."""
+    from ..io import to_json
+
+    return to_json(obj, sort_keys=True, separators=(",", ":"))
 
 
 def _crc(payload) -> int:
@@ -133,11 +149,16 @@ class Store:
         text = "".join(_line("d", r) for r in records)
         if chunk is not None:
             text += _line("chunk", chunk)
-        if self._fh is None:
-            self._fh = open(self.path, "a", encoding="utf-8")
-        self._fh.write(text)
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
+        try:
+            if self._fh is None:
+                self._fh = open(self.path, "a", encoding="utf-8")
+            self._fh.write(text)
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+        except OSError as exc:  # e.g. the disk filled up: the records before this batch are kept
+            from ..resources import path_error
+
+            raise path_error(exc, self.path, "--out") from None
         for r in records:
             self.records[r["key"]] = r
         if chunk is not None:

@@ -101,3 +101,21 @@ def test_editing_resampling_changes_the_generated_filter_kernel(package_copy):
     res.write_text(text.replace("        idx[i] = j\n", "        idx[i] = 0\n", 1))
     after = _run(code, env)["est"]
     assert before[:1] == after[:1] and before[2] != after[2]
+
+
+def test_self_healing_cache_is_scoped_to_pfbench_functions(tmp_path):
+    """pfbench's njit gives its dispatcher the self-healing cache; numba itself is not patched, so
+    ``numba.njit(cache=True)`` code outside pfbench keeps numba's own cache class."""
+    import numba
+    from numba.core.caching import FunctionCache
+
+    from pfbench.backends import cache
+
+    def outside(x):  # defined in this test file: not pfbench code
+        return x + 1.0
+
+    ours = cache.njit(outside)
+    theirs = numba.njit(cache=True)(outside)
+    assert type(ours._cache).__name__ == "HealingFunctionCache"
+    assert type(theirs._cache) is FunctionCache
+    assert type(cache.njit(cache=False)(outside)._cache).__name__ == "NullCache"

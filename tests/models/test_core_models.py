@@ -11,7 +11,7 @@ def test_registry_has_core_models():
         assert name in models.names()
     with pytest.raises(PfbenchError, match="unknown model"):
         models.get("nope")
-    with pytest.raises(PfbenchError, match="bad parameters"):
+    with pytest.raises(PfbenchError, match="not a parameter of model"):
         models.get("ob1", nonsense=1)
 
 

@@ -17,14 +17,13 @@ The SMC is the reduced PMSM model + the generic guided filter (:mod:`.smc`), ste
 loop. The SMC run is one compiled numba function (``backend="numba"``, calling the compiled guided
 kernel) or the same code in plain Python (``backend="numpy"``, the NumPy guided step; equal to
 round-off). The EKF run (eq. 4.26 Jacobian, helpers of :mod:`pfbench.kalman`) is Python only.
-Batches of runs go to worker processes.
+Batches of runs go to worker processes that die with their parent (:func:`pfbench.procs.process_pool`).
 """
 from __future__ import annotations
 
 import math
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +32,7 @@ from ...backends.cache import njit
 from ...errors import PfbenchError
 from ...filters.inputs import ess_count
 from ...models.pmsm import Q_THETA_FILTER, Pmsm, jacobian, pmsm_step, wrap_angle
+from ...procs import process_pool
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
@@ -295,7 +295,7 @@ def run_batch(cfg: LoopConfig, n_runs: int, seed: int = 0, workers: int | None =
         for rr in (progress(it, total=len(jobs)) if progress else it):
             rows.extend(rr)
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with process_pool(workers) as pool:  # workers die with this process (also on kill -9)
             it = pool.map(_batch_worker, jobs)
             for rr in (progress(it, total=len(jobs)) if progress else it):
                 rows.extend(rr)

@@ -1,0 +1,129 @@
+"""Worker processes that die with their parent, and one writer per output (advisory file locks).
+
+Every process pool of pfbench is made by :func:`process_pool`. Its workers
+
+* ask the kernel for ``SIGKILL`` when the parent dies (Linux ``prctl(PR_SET_PDEATHSIG)``, set in
+  the worker initializer through ``ctypes``), so a ``kill -9`` of ``pfbench sweep`` or
+  ``pfbench reproduce`` leaves no idle workers behind;
+* also run a daemon thread that ends the worker as soon as ``os.getppid()`` changes (the worker
+  was re-parented), the fallback where ``prctl`` is unavailable (other Unixes) and for the one
+  case ``PR_SET_PDEATHSIG`` misses: the parent died before the worker set it.
+
+:func:`exclusive_lock` gives one writer per output: an ``fcntl.flock`` on ``<output>.lock``. The
+kernel drops the lock when its holder dies (also on ``kill -9``), so a lock left by a killed run
+is taken over without any stale-lock guesswork; a live holder makes the second command refuse
+with the holder's PID (the PID written into the lock file).
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Callable, Iterator
+
+from .errors import InputError
+
+#: seconds between two parent checks of the fallback watcher thread
+WATCH_INTERVAL_S = 0.5
+_PR_SET_PDEATHSIG = 1
+
+
+def _set_parent_death_signal() -> bool:
+    """``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux; False where it is not available."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+    except (OSError, AttributeError):  # pragma: no cover - no libc/prctl
+        return False
+
+
+def _watch_parent(parent_pid: int) -> None:
+    stop = threading.Event()
+    while not stop.wait(WATCH_INTERVAL_S):
+        if os.getppid() != parent_pid:
+            os._exit(1)
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Make this (worker) process end when ``parent_pid`` ends (see the module docstring)."""
+    _set_parent_death_signal()
+    if os.getppid() != parent_pid:  # the parent died before prctl took effect
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="pfbench-parent-watch",
+                     daemon=True).start()
+
+
+def _init_worker(parent_pid: int, initializer: Callable | None, initargs: tuple) -> None:
+    die_with_parent(parent_pid)
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def process_pool(max_workers: int, *, mp_context=None, initializer: Callable | None = None,
+                 initargs: tuple = ()):
+    """A ``concurrent.futures.ProcessPoolExecutor`` whose workers die with this process.
+
+    Same arguments as the executor's; ``initializer(*initargs)`` runs after the worker has
+    arranged to die with its parent. Create the pool from the main thread: the parent-death
+    signal fires when the *thread* that started the worker ends.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context,
+                               initializer=_init_worker, initargs=(os.getpid(), initializer, initargs))
+
+
+def lock_path(output) -> Path:
+    """The lock file of an output: ``<output>.lock`` beside it."""
+    output = Path(output)
+    return output.with_name(output.name + ".lock")
+
+
+def _holder(path: Path) -> str:
+    try:
+        pid = path.read_text().strip()
+    except OSError:
+        pid = ""
+    return f"PID {pid}" if pid.isdigit() else "another process"
+
+
+@contextlib.contextmanager
+def exclusive_lock(output, what: str, flag: str = "--out") -> Iterator[Path]:
+    """Hold the advisory lock of ``output`` (a path) while the block runs, or refuse.
+
+    Raises :class:`~pfbench.errors.InputError` naming the holder's PID if another live process
+    holds it, a :class:`~pfbench.errors.DataError` naming ``output`` and ``flag`` if its directory
+    cannot be used. ``what`` names the output in the message (e.g. ``"sweep store x.jsonl"``). The lock
+    file stays (removing it would race with a waiting process); it holds the last holder's PID.
+    """
+    import fcntl
+
+    path = lock_path(output)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as exc:  # the output's directory cannot be used
+        from .resources import path_error
+
+        raise path_error(exc, output, flag) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError(f"{what} is being written by {_holder(path)} (lock {path}); wait for "
+                             "it to finish or stop it, then re-run") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield path
+    finally:
+        os.close(fd)  # releases the flock
+
+
+__all__ = ["process_pool", "die_with_parent", "exclusive_lock", "lock_path"]

@@ -1,0 +1,104 @@
+"""Unusable output paths are one line naming the path and what to do (exit 2), never a traceback.
+
+Tests run as root in CI, where ``chmod 0555`` does not stop a write: the unusable paths here are
+one whose parent is a regular file (ENOTDIR/EEXIST for anyone, root included), ``/proc`` (takes
+no new files) and, for the errno that cannot be produced without mounting a file system
+(EROFS, ENOSPC), an OSError injected where the file is opened.
+"""
+import errno
+import os
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from pfbench import cli
+from pfbench.errors import DataError
+from pfbench.sweep import make_spec
+from pfbench.sweep.store import Store
+
+SWEEP = ["sweep", "--model", "ob1", "--particles", "10", "--runs", "1", "--steps", "3", "--workers", "1",
+         "--backend", "numpy", "--quiet"]
+
+
+def _one_line(r, *needles):
+    err = r.stderr.strip()
+    assert r.exit_code == 2, (r.exit_code, r.output)
+    assert err.startswith("error:") and "\n" not in err and "Traceback" not in err, err
+    assert all(n in err for n in needles), err
+    return err
+
+
+@pytest.fixture
+def a_file(tmp_path):
+    f = tmp_path / "plain-file"
+    f.write_text("x")
+    return f
+
+
+@pytest.mark.parametrize("sub", ["s.jsonl", "d/s.parquet"])
+def test_sweep_out_under_a_regular_file(a_file, sub):
+    out = f"{a_file}/{sub}"
+    _one_line(CliRunner().invoke(cli.main, [*SWEEP, "--out", out]), out, "choose another --out")
+
+
+def test_sweep_out_in_proc():
+    _one_line(CliRunner().invoke(cli.main, [*SWEEP, "--out", "/proc/pfbench-test.jsonl"]),
+              "/proc/pfbench-test.jsonl", "--out")
+
+
+def test_bench_out_is_checked_before_the_benchmark_runs(a_file, monkeypatch):
+    from pfbench import bench
+
+    def never(**kw):  # the check must come first: no minutes of timing for nothing
+        raise AssertionError("the benchmark ran before --out was checked")
+
+    monkeypatch.setattr(bench, "run_bench", never)
+    out = f"{a_file}/bench.json"
+    _one_line(CliRunner().invoke(cli.main, ["bench", "--quick", "--out", out]), out, "--out")
+    _one_line(CliRunner().invoke(cli.main, ["bench", "--quick", "--out", "/proc/bench.json"]),
+              "/proc/bench.json")
+
+
+@pytest.mark.parametrize("code,word", [(errno.EROFS, "read-only"), (errno.ENOSPC, "disk is full"),
+                                       (errno.EACCES, "permission")])
+def test_store_creation_on_a_read_only_or_full_file_system(tmp_path, monkeypatch, code, word):
+    def refuse(*a, **k):
+        raise OSError(code, os.strerror(code), str(tmp_path / "s.jsonl.tmp"))
+
+    monkeypatch.setattr(Store, "open", classmethod(lambda cls, *a, **k: refuse()))
+    out = tmp_path / "s.jsonl"
+    _one_line(CliRunner().invoke(cli.main, [*SWEEP, "--out", str(out)]), str(out), word)
+
+
+def test_journal_append_on_a_full_disk_is_a_data_error(tmp_path, monkeypatch):
+    spec = make_spec("ob1", particles=(10,), runs=1, steps=3, backend="numpy")
+    st = Store.open(tmp_path / "s.jsonl", spec)
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(DataError, match=r"s\.jsonl: No space left on device; the disk is full"):
+        st.append([])
+    st.close()
+
+
+def test_top_level_net_for_a_user_path_but_a_traceback_for_bugs(monkeypatch):
+    from pfbench.sweep import cli as sweep_cli
+
+    def raising(exc):
+        def f(kw):
+            raise exc
+        return f
+
+    # an OSError on a user path that no conversion caught: one line naming it
+    monkeypatch.setattr(sweep_cli, "_do_run", raising(OSError(errno.EROFS, "Read-only file system", "/mnt/ro/x")))
+    _one_line(CliRunner().invoke(cli.main, ["sweep"]), "/mnt/ro/x", "read-only")
+    # no file name, or a file of the package itself: a bug, with its traceback and exit 1
+    pkg_file = str(Path(cli.__file__).with_name("no-such-table.json"))
+    for exc in (OSError(errno.EROFS, "Read-only file system"), OSError(errno.ENOENT, "missing", pkg_file),
+                OSError(errno.EBADF, "Bad file descriptor", "/tmp/x")):
+        monkeypatch.setattr(sweep_cli, "_do_run", raising(exc))
+        r = CliRunner().invoke(cli.main, ["sweep"])
+        assert r.exit_code == 1 and "Traceback" in r.stderr and "internal error" in r.stderr
