@@ -310,8 +310,14 @@ def options_cmd(recipe_id):
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Recipe option (repeatable; `pfbench options ID` lists a recipe's keys).")
 @click.option("--quiet", is_flag=True)
-def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, options, quiet):
-    """Run recipe(s): `pfbench reproduce fig5`, `pfbench reproduce multipdf:fig3 --full`."""
+@click.option("--force", is_flag=True,
+              help="With --all: rerun recipes whose verified result is already up to date.")
+def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, options, quiet, force):
+    """Run recipe(s): `pfbench reproduce fig5`, `pfbench reproduce multipdf:fig3 --full`.
+
+    With --all, a recipe whose result set verifies and was made by the same code with the same
+    mode, seed, backend, options and data is skipped as up to date, so an interrupted
+    `reproduce --all --full` resumes where it stopped (--force reruns everything)."""
     from . import recipes
 
     if run_all and recipe_ids:
@@ -337,15 +343,22 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
         check_known(opts, {k for r in recs for k in r.option_keys}, "an option of the selected recipes")
     recipes.check_data(recs, data)
     failed = []
-    for rec in recs:
+    for k, rec in enumerate(recs, 1):
+        step = f"[{k}/{len(recs)}] " if len(recs) > 1 else ""
         if run_all and rec.needs and not recipes.needs_met(rec.needs):
-            click.echo(f"-- {rec.id}: skipped ({recipes.needs_hint(rec.needs)})")
+            click.echo(f"-- {step}{rec.id}: skipped ({recipes.needs_hint(rec.needs)})")
             continue
-        click.echo(f"== {rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
+        rec_data = data if (rec.reads_data or len(recs) == 1) else None
+        if run_all and not force and recipes.up_to_date(rec, out_root=out_root, full=full, seed=seed,
+                                                        backend=backend, options=per_recipe[rec.id],
+                                                        data=rec_data):
+            click.echo(f"-- {step}{rec.id}: up to date (verified result of this code and settings; "
+                       "--force reruns)")
+            continue
+        click.echo(f"== {step}{rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
         try:
             ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root,
-                              data=data if (rec.reads_data or len(recs) == 1) else None,
-                              quiet=quiet, options=per_recipe[rec.id])
+                              data=rec_data, quiet=quiet, options=per_recipe[rec.id])
         except PfbenchError as exc:
             if not run_all:
                 raise
@@ -353,6 +366,8 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
             click.echo(f"error: {rec.id}: {_one_line(exc)}", err=True)
             continue
         click.echo(recipes.format_comparisons(ctx.comparisons))
+        for c in ctx.claims:
+            click.echo(f"claim: {c['verdict']:<16} {c['claim']} ({c['where']})")
         for n in ctx.notes:
             click.echo(f"note: {n}")
         click.echo(f"-> {ctx.out_dir} ({len(ctx.outputs)} files, {ctx.extra['elapsed_s']:.1f} s)")
@@ -365,18 +380,24 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
 @click.option("--strict", is_flag=True,
               help="Exit 2 if a result is damaged: a record that is not valid JSON, or an "
                    "artefact that is missing or differs from its record's checksum.")
-def report(out_root, strict):
+@click.option("--json", "as_json", is_flag=True, help="Print the scorecard, claims and problems as JSON.")
+def report(out_root, strict, as_json):
     """Regenerate results/REPORT.md from the provenance records, each verified against the
     checksums of its files. Damaged results are printed as warnings; they and the recipes that
     have not been run are listed in the report's "Not reproduced / damaged" section."""
-    from .recipes import write_report
+    from .report import report_data, write_report
 
     path, problems = write_report(out_root)
+    if as_json:
+        from .io import to_json
+
+        click.echo(to_json(report_data(out_root)))
     damaged = [p for p in problems if p.damaged]
     for p in damaged:
         click.echo(f"warning: {_one_line(p.line())}", err=True)
-    click.echo(f"wrote {path}")
-    if len(problems) > len(damaged):
+    if not as_json:
+        click.echo(f"wrote {path}")
+    if len(problems) > len(damaged) and not as_json:
         click.echo(f"{len(problems) - len(damaged)} recipe(s) not run or with leftovers of an "
                    "interrupted run (listed in the report)")
     if strict and damaged:

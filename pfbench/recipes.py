@@ -301,6 +301,7 @@ class RecipeContext:
     quiet: bool = False
     outputs: list[str] = field(default_factory=list)
     comparisons: list[Comparison] = field(default_factory=list)
+    claims: list[dict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     extra: dict = field(default_factory=dict)
     stage_dir: Path | None = None   # set by run(): artefacts are written here, then moved
@@ -367,6 +368,21 @@ class RecipeContext:
     def compare(self, quantity: str, ours, paper=None, unit: str = "", note: str = "") -> None:
         """Record one paper-vs-ours line (paper may be None or a claim in words)."""
         self.comparisons.append(Comparison(quantity, ours, paper, unit, note))
+
+    def claim(self, claim: str, where: str, quantity: str, outcome, paper=None, note: str = "") -> None:
+        """Record a claim of the paper that this recipe tests, with its computed verdict.
+
+        ``claim``: the claim, quoted or paraphrased; ``where``: its location ("[Thesis] §4.4.5,
+        Fig. 4.9"); ``quantity``: what we measure; ``outcome``: a :class:`pfbench.verdicts.Outcome`
+        from one of the rules of :mod:`pfbench.verdicts` (never a typed verdict); ``paper``: the
+        paper's value or direction as it states it.
+        """
+        from .verdicts import Outcome
+
+        if not isinstance(outcome, Outcome):
+            raise TypeError("claim() needs an Outcome from pfbench.verdicts (verdicts are computed)")
+        self.claims.append({"claim": claim, "where": where, "quantity": quantity, "paper": paper,
+                            "note": note, **outcome.as_dict()})
 
     def note(self, text: str) -> None:
         """A sentence for the report: what differs from the paper and why."""
@@ -467,6 +483,40 @@ def _commit(ctx: RecipeContext, record: dict) -> None:
     io.write_json(ctx.path(f"{ctx.recipe.name}.json"), record)
 
 
+def code_fingerprint(rec: Recipe) -> str:
+    """Hash of the code behind a recipe's numbers: the whole pfbench package
+    (:func:`pfbench.backends.cache.package_fingerprint`) and the recipe's paper folder."""
+    import hashlib
+
+    import reproductions
+
+    from .backends.cache import package_fingerprint
+
+    h = hashlib.sha256(package_fingerprint().encode())
+    folder = Path(reproductions.__file__).resolve().parent / rec.paper
+    for f in sorted(folder.rglob("*.py")):
+        h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def up_to_date(rec: Recipe, *, out_root, full: bool, seed: int, backend: str, options: dict,
+               data=None) -> bool:
+    """Whether ``results/<paper>/<name>.json`` verifies against its artefacts and was made by this
+    code (:func:`code_fingerprint`) with the same mode, seed, backend, options and data: then
+    ``reproduce --all`` skips it, which is how an interrupted batch resumes."""
+    from .report import verify
+
+    path = Path(out_root) / rec.paper / f"{rec.name}.json"
+    if not path.exists():
+        return False
+    record, problems = verify(path, rec.id)
+    if record is None or problems:
+        return False
+    want = {"mode": "full" if full else "quick", "seed": seed, "backend": backend,
+            "options": dict(options), "data": str(Path(data)) if data else None, "code": code_fingerprint(rec)}
+    return all(record.get(k) == v for k, v in want.items())
+
+
 def run(rec: Recipe, *, full: bool = False, backend: str = "numba", seed: int = 0,
         out_root: str | Path = "results", data: str | Path | None = None, quiet: bool = False,
         options: dict | None = None) -> RecipeContext:
@@ -494,9 +544,10 @@ def run(rec: Recipe, *, full: bool = False, backend: str = "numba", seed: int = 
             elapsed = time.perf_counter() - t0
             record = provenance(
                 recipe=rec.id, title=rec.title, mode="full" if full else "quick", backend=backend,
+                code=code_fingerprint(rec),
                 seed=seed, data=str(ctx.data) if ctx.data else None, options=dict(ctx.options),
                 elapsed_s=round(elapsed, 3), outputs=ctx.outputs,
-                comparisons=[c.as_dict() for c in ctx.comparisons], notes=ctx.notes,
+                comparisons=[c.as_dict() for c in ctx.comparisons], claims=ctx.claims, notes=ctx.notes,
                 extra=ctx.extra)
             _commit(ctx, record)
         finally:
@@ -504,169 +555,3 @@ def run(rec: Recipe, *, full: bool = False, backend: str = "numba", seed: int = 
     ctx.stage_dir = None
     ctx.extra["elapsed_s"] = elapsed
     return ctx
-
-
-# --------------------------------------------------------------------------- report
-@dataclass
-class Problem:
-    """One line of the report's "Not reproduced / damaged" section."""
-
-    recipe: str
-    what: str
-    redo: str
-    damaged: bool = True     # a damaged/incomplete result (a warning; ``report --strict`` fails)
-
-    def line(self) -> str:
-        return f"`{self.recipe}`: {self.what}; {self.redo}"
-
-
-def verify(path: str | Path, recipe_id: str) -> tuple[dict | None, list[str]]:
-    """Read the provenance record ``path`` of ``recipe_id`` and check it against the files on
-    disk: ``(record or None, [problems])``. A problem is an unreadable/garbage record, a record of
-    another recipe, a record without checksums (written before they were recorded), a missing
-    artefact or one whose SHA-256 differs from the record's."""
-    path = Path(path)
-    try:
-        rec = io.loads(path.read_text(errors="replace"), str(path))
-    except OSError as exc:
-        return None, [f"record {path} cannot be read ({exc.strerror or exc})"]
-    except PfbenchError as exc:
-        return None, [f"record {path} is damaged: {str(exc).split(': ', 1)[-1]}"]
-    if not isinstance(rec, dict) or not isinstance(rec.get("recipe"), str):
-        return None, [f"record {path} is damaged: not a provenance record"]
-    if rec["recipe"] != recipe_id:
-        return None, [f"record {path} is damaged: it names recipe {rec['recipe']!r}"]
-    arts = rec.get("artefacts")
-    if not isinstance(arts, dict):
-        return rec, [f"record {path} has no artefact checksums (written by an older pfbench or "
-                     "edited): its files cannot be verified"]
-    problems, bad = [], []
-    for rel, digest in arts.items():
-        f = path.parent / rel
-        try:
-            ok = io.sha256(f) == digest
-        except FileNotFoundError:
-            problems.append(f"{f} is missing")
-            continue
-        except OSError as exc:
-            problems.append(f"{f} cannot be read ({exc.strerror or exc})")
-            continue
-        if not ok:
-            bad.append(rel)
-    if bad:
-        problems.append(f"{', '.join(bad)} do{'es' if len(bad) == 1 else ''} not match the record "
-                        f"(seed {rec.get('seed')}, {rec.get('created_utc')}): the files were changed "
-                        "or a later run was interrupted")
-    return rec, problems
-
-
-def check_results(out_root: str | Path = "results") -> tuple[list[dict], list[Problem]]:
-    """Every verified provenance record under ``out_root`` and every problem (damaged or
-    incomplete result sets, recipes with no result)."""
-    out_root = Path(out_root)
-    reg = discover()
-    records, problems = [], []
-    seen = set()
-    for paper in PAPERS:
-        d = out_root / paper
-        try:
-            files = sorted(p for p in d.glob("*.json") if not p.name.endswith(".data.json"))
-        except OSError:
-            files = []
-        for p in files:
-            rid = f"{paper}:{p.stem}"
-            redo = f"redo: `pfbench reproduce {rid}`"
-            rec, probs = verify(p, rid)
-            if rid not in reg and rec is None:
-                problems.append(Problem(rid, "; ".join(probs) + " (no such recipe)", "remove the file"))
-                continue
-            seen.add(rid)
-            if probs:
-                problems.append(Problem(rid, "; ".join(probs), redo))
-            if rec is not None and not probs:
-                records.append(rec)
-            elif rec is not None:
-                rec = dict(rec, damaged=True)
-                records.append(rec)
-            if any(_leftovers(d, p.stem)) and not _locked(d, p.stem):
-                problems.append(Problem(rid, "an interrupted run left a staging directory (the "
-                                        "result above is the previous complete one)",
-                                        "it is removed by the next `pfbench reproduce " + rid + "`",
-                                        damaged=False))
-    for rid, r in reg.items():
-        if rid in seen:
-            continue
-        if r.needs and not needs_met(r.needs):
-            problems.append(Problem(rid, f"not run: {needs_hint(r.needs)}",
-                                    f"then `pfbench reproduce {rid}`", damaged=False))
-        else:
-            problems.append(Problem(rid, "not run (no result)", f"run `pfbench reproduce {rid}`",
-                                    damaged=False))
-    return records, problems
-
-
-def _locked(out_dir: Path, name: str) -> bool:
-    """Whether a run of recipe ``name`` holds its lock now."""
-    import fcntl
-
-    try:
-        fd = os.open(_lock_path(out_dir, name), os.O_RDONLY)
-    except OSError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        return False
-    except OSError:
-        return True
-    finally:
-        os.close(fd)
-
-
-def write_report(out_root: str | Path = "results") -> tuple[Path, list[Problem]]:
-    """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``, each
-    verified against its artefacts (:func:`verify`). Returns the path and the problems, which the
-    report lists in a "Not reproduced / damaged" section."""
-    out_root = Path(out_root)
-    records, problems = check_results(out_root)
-    lines = ["# pfbench results report", "",
-             "Generated by `pfbench report` from the provenance records under `results/`.", ""]
-    for paper, title in PAPERS.items():
-        recs = [r for r in records if r["recipe"].startswith(paper + ":")]
-        if not recs:
-            continue
-        lines += [f"## {paper}: {title}", ""]
-        for r in recs:
-            flag = " (DAMAGED: see below)" if r.get("damaged") else ""
-            lines.append(f"### `{r['recipe']}`: {r.get('title', '')}{flag}")
-            lines.append("")
-            lines.append(f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
-                         f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, "
-                         f"{r.get('created_utc')}")
-            lines.append("")
-            comps = [c for c in r.get("comparisons") or [] if isinstance(c, dict)]
-            if comps:
-                lines.append("| quantity | ours | paper | deviation | note |")
-                lines.append("|---|---|---|---|---|")
-                for c in comps:
-                    dev = c.get("deviation")
-                    q = str(c.get("quantity")) + (f" [{c['unit']}]" if c.get("unit") else "")
-                    ours, pap = c.get("ours"), c.get("paper")
-                    if ours is None and c.get("ours" + io.NONFINITE_SUFFIX):
-                        ours = c["ours" + io.NONFINITE_SUFFIX]
-                    ours = f"{ours:.4g}" if isinstance(ours, float) else ours
-                    pap = f"{pap:.4g}" if isinstance(pap, float) else ("-" if pap is None else pap)
-                    dev = f"{dev:+.1%}" if isinstance(dev, (int, float)) else ""
-                    lines.append(f"| {q} | {ours} | {pap} | {dev} | {c.get('note', '')} |")
-                lines.append("")
-            for n in r.get("notes") or []:
-                lines.append(f"- {n}")
-            outs = [Path(str(o)).name for o in r.get("outputs") or []]
-            if outs:
-                lines.append("")
-                lines.append("Outputs: " + ", ".join(f"`{o}`" for o in outs))
-            lines.append("")
-    if problems:
-        lines += ["## Not reproduced / damaged", ""]
-        lines += [f"- {p.line()}" for p in problems]
-        lines.append("")
-    return io.write_text(out_root / "REPORT.md", "\n".join(lines) + "\n"), problems

@@ -107,6 +107,33 @@ def eq54_model(signs: dict | None = None, Ts: float = TS) -> DiscreteModel:
     return DiscreteModel(A, B.reshape(-1, 1), C.reshape(1, -1), Ts)
 
 
+def tf_bode(w=None):
+    """Bode data of the eq. 52 transfer function ([RTD] Fig. 3), via ``scipy.signal.bode``.
+
+    ``w``: angular frequencies in rad/s (default 200 log-spaced points over 1e-3 .. 1e2 rad/s, two
+    decades either side of the poles). Returns ``(w, magnitude_dB, phase_deg)``.
+    """
+    from scipy.signal import bode
+
+    w = np.logspace(-3, 2, 200) if w is None else np.asarray(w, dtype=np.float64).ravel()
+    if w.size == 0 or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise InputError("tf_bode: frequencies must be finite and positive")
+    w, mag, phase = bode((TF_NUM, TF_DEN), w=w)
+    return np.asarray(w), np.asarray(mag), np.asarray(phase)
+
+
+def tf_step(t, amplitude: float = U_STEP) -> np.ndarray:
+    """Continuous step response of eq. 52 to a step of ``amplitude`` at t = 0 (``scipy.signal.step``);
+    the model curve of [RTD] Figs. 2 and 4 (input held at 38 degC, §4.1)."""
+    from scipy.signal import step
+
+    t = np.asarray(t, dtype=np.float64).ravel()
+    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0:
+        raise InputError("tf_step: t must be finite, non-negative and strictly increasing")
+    _, y = step((TF_NUM, TF_DEN), T=t)
+    return float(amplitude) * np.asarray(y)
+
+
 # ----------------------------------------------------------------------------- RC reduction
 
 @dataclass

@@ -54,10 +54,12 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
     return summ, spec, wall, st
 
 
-def full_time_estimate(ctx, st, runs_full: int) -> float:
-    """Seconds a --full run would take on this host (measured worker-seconds x scale / cores)."""
+def full_time_estimate(ctx, st, runs_full: int, steps_full: int | None = None) -> float:
+    """Seconds a --full run would take on this host (measured worker-seconds x scale / cores);
+    ``steps_full``: the --full horizon when it differs from the measured sweep's."""
     ws = float(sum(c["wall_s"] for c in st.chunks))
-    return ws * runs_full / max(1, st.spec["runs"]) / max(1, workers(ctx))
+    scale = (steps_full / st.spec["steps"]) if steps_full else 1.0
+    return ws * scale * runs_full / max(1, st.spec["runs"]) / max(1, workers(ctx))
 
 
 def nf_table(summ):
@@ -101,3 +103,54 @@ def significance(summ, nf_a, nf_b):
 
 
 __all__ = ["OPTIONS", "sweep", "claims", "plot", "nf_table", "full_time_estimate", "significance", "np"]
+
+
+# ----- per-run data and the claims' rules ------------------------------------------------------
+# Every run r of a sweep shares its ground truth across all configurations (the sweep seeds the
+# truth by run), so aRMSE differences between configurations are paired per run.
+
+def per_run(st):
+    """Wide frame: index run, columns (method, n_particles, n_filters), values per-run aRMSE."""
+    f = st.frame()
+    return f.pivot_table(index="run", columns=["method", "n_particles", "n_filters"], values="armse")
+
+
+def mean_over(wide, cols):
+    """Per-run mean of the aRMSE over the configurations ``cols`` (a list of column keys)."""
+    return wide[list(cols)].mean(axis=1)
+
+
+def mpdf_cols(wide, nf=None, np_=None):
+    """MultiPDF columns of ``wide`` with N_f == nf and/or N_p == np_ (None: any)."""
+    return [c for c in wide.columns if c[0] == "multipdf" and (nf is None or c[2] == nf)
+            and (np_ is None or c[1] == np_)]
+
+
+def nf_vs_bf(wide, nfs):
+    """Per-run [mean over N_p and N_f in nfs of aRMSE] - [mean over the same N_p of aRMSE(N_f=1)].
+
+    Only N_p values at which every N_f in ``nfs`` exists enter (so both terms average the same N_p).
+    """
+    nps = sorted({c[1] for c in mpdf_cols(wide)})
+    nps = [p for p in nps if all(("multipdf", p, f) in wide.columns for f in list(nfs) + [1])]
+    a = mean_over(wide, [("multipdf", p, f) for p in nps for f in nfs])
+    b = mean_over(wide, [("multipdf", p, 1) for p in nps])
+    return (a - b).to_numpy(), nps
+
+
+def best_set_rule(wide, in_set, all_nf):
+    """Optimum-N_f claim: per-run difference aRMSE(best N_f outside the set) - aRMSE(best N_f in it).
+
+    "Best" = lowest mean (over runs and the N_p where every N_f exists) aRMSE; a positive mean
+    difference supports the paper's optimum. Returns (samples, best_in, best_out, argmin).
+    """
+    nps = sorted({c[1] for c in mpdf_cols(wide)})
+    nps = [p for p in nps if all(("multipdf", p, f) in wide.columns for f in all_nf)]
+    by_nf = {f: mean_over(wide, [("multipdf", p, f) for p in nps]) for f in all_nf}
+    means = {f: float(v.mean()) for f, v in by_nf.items()}
+    argmin = min(means, key=means.get)
+    inside = [f for f in all_nf if f in in_set]
+    outside = [f for f in all_nf if f not in in_set]
+    b_in = min(inside, key=means.get)
+    b_out = min(outside, key=means.get)
+    return (by_nf[b_out] - by_nf[b_in]).to_numpy(), b_in, b_out, argmin

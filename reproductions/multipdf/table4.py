@@ -5,7 +5,9 @@ import pandas as pd
 
 from pfbench.recipes import recipe
 
-from ._common import OPTIONS, sweep
+from pfbench.verdicts import direction
+
+from ._common import OPTIONS, per_run, sweep
 
 OBJECTS = [("Ob2", "ob2", {}), ("Ob3 v1", "ob3", {"version": 1}), ("Ob3 v2", "ob3", {"version": 2}),
            ("Ob3 v3", "ob3", {"version": 3}), ("Ob3 v4", "ob3", {"version": 4}),
@@ -15,7 +17,7 @@ OBJECTS = [("Ob2", "ob2", {}), ("Ob3 v1", "ob3", {"version": 1}), ("Ob3 v2", "ob
 @recipe("multipdf:table4", aliases=("mpf-table",), title="MPF aRMSE, Ob2 and Ob3 v1-v5 (Table 4)",
         quick_cost="~30 s", full_cost="~10 min", options=OPTIONS)
 def table4(ctx):
-    rows = []
+    rows, wides = [], {}
     for label, model, params in OBJECTS:
         name = "table4_" + label.replace(" ", "").lower()
         # MPF (all states linear in the transition: an EKF, independent of N_p) next to the
@@ -26,6 +28,7 @@ def table4(ctx):
         s = summ.set_index(["method", "n_particles", "n_filters"])
         mpf = float(s.loc[("mpf", 100, 1), "armse_mean"])
         pf = s.loc["multipdf"]["armse_mean"]
+        wides[label] = per_run(st)
         rows.append({"object": label, "mpf_armse": mpf,
                      "mpf_lo": float(s.loc[("mpf", 100, 1), "armse_lo"]),
                      "mpf_hi": float(s.loc[("mpf", 100, 1), "armse_hi"]),
@@ -35,19 +38,31 @@ def table4(ctx):
     df = pd.DataFrame(rows)
     ctx.write_table("table4", df)
     for r in rows:
-        wins = r["mpf_armse"] < r["multipdf_worst"]
         ctx.compare(f"table4: {r['object']} MPF aRMSE", ours=r["mpf_armse"],
                     note=f"MultiPDF/BF range {r['multipdf_best']:.3f}-{r['multipdf_worst']:.3f}")
-        ctx.compare(f"table4: {r['object']} MPF better than the worst MultiPDF/BF value",
-                    ours="yes" if wins else "no",
-                    paper="yes" if r["object"] == "Ob3 v1" else "no")
+        wide = wides[r["object"]]
+        pf_cols = sorted((c for c in wide.columns if c[0] == "multipdf"), key=lambda c: wide[c].mean())
+        mpf = wide[("mpf", 100, 1)]
+        if r["object"] == "Ob3 v1":
+            # "smaller than most of the values": below the median-ranked MultiPDF/BF configuration
+            ref = pf_cols[len(pf_cols) // 2]
+            ctx.claim("the estimation quality was improved only for Ob3 in version (v1) ... the quality "
+                      "index in Table 4 is smaller than most of the values presented in Fig. 5",
+                      "[MultiPDF] §7, Table 4", f"Ob3 v1: aRMSE(MPF) - aRMSE(MultiPDF N_p={ref[1]}, "
+                      f"N_f={ref[2]}, the median-ranked of {len(pf_cols)} configurations)",
+                      direction((mpf - wide[ref]).to_numpy(), -1, "aRMSE difference"), paper="< 0")
+        else:
+            ref = pf_cols[-1]  # the worst MultiPDF/BF configuration by mean aRMSE
+            ctx.claim("For other objects, the MPF result is worse than the worst results from MultiPDF "
+                      "PF", "[MultiPDF] §7, Table 4", f"{r['object']}: aRMSE(MPF) - aRMSE(worst "
+                      f"MultiPDF/BF: N_p={ref[1]}, N_f={ref[2]})",
+                      direction((mpf - wide[ref]).to_numpy(), +1, "aRMSE difference"), paper="> 0")
     ctx.note("table4: the numeric Table 4 values were lost in the text extraction; only the claim "
              "'MPF improves only on Ob3 v1, elsewhere worse than the worst MultiPDF result' is "
-             "compared. With every state linear in the transition the MPF is an EKF (one copy, "
+             "tested (as claims). With every state linear in the transition the MPF is an EKF (one copy, "
              "independent of N_p, as the paper says); the reference grid is N_p in {100, 1000}, "
              "N_f in {1, 3}, M = 100.")
     ctx.note("table4: for Ob3 v2 and v4 the measurement Jacobian vanishes at the prior mean "
              "x = 0 (products x_i x_j), so the EKF never moves off 0 and its aRMSE equals the RMS "
              "of the state itself (same value for both); for v5 the EKF diverges (log/min "
-             "singularities). Ob2's and Ob3 v4's EKF beat the worst PF value here, unlike the "
-             "paper's statement.")
+             "singularities).")

@@ -6,6 +6,7 @@ import numpy as np
 from pfbench import kalman
 from pfbench.plants import rtd
 from pfbench.recipes import recipe
+from pfbench.verdicts import close_to, holds
 
 
 @recipe("rtd:poles", title="RTD poles, RC fit, DARE solution and steady-state gain", quick_cost="~2 s",
@@ -23,6 +24,16 @@ def poles(ctx):
     p = rtd.tf_poles()
     add("eq. 52 pole 1 (roots of s^2 + 2.488 s + 0.1695)", round(float(p[0]), 5), rtd.PAPER_POLES[0], "1/s")
     add("eq. 52 pole 2", round(float(p[1]), 5), rtd.PAPER_POLES[1], "1/s")
+    for i in (0, 1):
+        paper = rtd.PAPER_POLES[i]
+        tol = 0.5e-4 / abs(paper)          # the chapter prints 4 decimals: half a unit of the last digit
+        ctx.claim(f"the roots of s^2 + 2.488 s + 0.1695 are -2.4179 and -0.0701 (root {i + 1})", "[RTD] §6",
+                  f"eq. 52 pole {i + 1}", close_to(float(p[i]), paper, tol,
+                                                   why=f"half a unit of the chapter's 4th decimal, {tol:.1e} relative"), paper=paper)
+    ctx.claim("both roots are real: our system behaves like two first-order systems in series", "[RTD] §6",
+              "imaginary parts and signs of the eq. 52 poles",
+              holds(bool(np.all(np.isreal(np.roots(rtd.TF_DEN))) and np.all(p < 0)),
+                    "both roots of the eq. 52 denominator are real and negative"), paper="two real poles")
     m = rtd.identified_model()
     zp = np.sort(m.poles_z.real)
     add("discrete pole 1 (ZOH, Ts = 0.1 s)", round(float(zp[0]), 5), None, "", "exp(-2.4179 Ts)")
@@ -48,7 +59,13 @@ def poles(ctx):
     P_scipy = sl.solve_discrete_are(m.A.T, m.C.T, Qx, np.array([[R]]))
     add("DARE P_inf[0,0] (generalized Schur, Fig. 5 Q=2.3, R=1)", float(P_prior[0, 0]), None)
     add("DARE P_inf[1,1]", float(P_prior[1, 1]), None)
-    add("DARE max |ours - scipy solve_discrete_are|", float(np.abs(P_prior - P_scipy).max()), None)
+    dare_err = float(np.abs(P_prior - P_scipy).max())
+    add("DARE max |ours - scipy solve_discrete_are|", dare_err, None)
+    ctx.claim("the DARE is solved by the generalized Schur method (deflating subspace)", "[RTD] §2.6, eqs. 38-45",
+              "max |P (our generalized Schur) - P (scipy solve_discrete_are)| for the Fig. 5 set-up",
+              holds(dare_err <= 1e-10 * float(np.abs(P_scipy).max()),
+                    f"our generalized-Schur DARE matches scipy to 1e-10 relative (ours {dare_err:.2g})"),
+              paper="solves the DARE")
     add("steady-state gain M_inf[0]", float(M[0, 0]), None)
     add("steady-state gain M_inf[1]", float(M[1, 0]), None)
     add("steady-state C P[n|n] C^T", float((m.C @ P_post @ m.C.T)[0, 0]), None)
@@ -65,8 +82,26 @@ def poles(ctx):
     add("RC (C = 260): scalar DARE closed form", p_closed, None, "", "Q = 1 through B, R = 1 (counts^2)")
     add("RC (C = 260): general generalized-Schur DARE", p_general, None)
     F = -1.0 / fit.tau
-    add("RC: chapter's Arduino formula (sqrt(H^2QR+F^2R^2)+FR)/H^2", kalman.chapter_riccati_scalar(F, c, q_rc, r_rc),
+    p_chapter = kalman.chapter_riccati_scalar(F, c, q_rc, r_rc)
+    add("RC: chapter's Arduino formula (sqrt(H^2QR+F^2R^2)+FR)/H^2", p_chapter,
         None, "", "continuous-time ARE root with F=-1/tau; not the discrete DARE")
+    # the scalar continuous-time ARE 2 F P - P^2 H^2 / R + Q = 0, and scipy's solver of it
+    care_res = 2 * F * p_chapter - p_chapter ** 2 * c * c / r_rc + q_rc
+    p_care = float(sl.solve_continuous_are([[F]], [[c]], [[q_rc]], [[r_rc]])[0, 0])
+    add("RC: continuous-time ARE residual of the chapter's formula", float(care_res), None)
+    add("RC: scipy solve_continuous_are", p_care, None)
+    rel_c = abs(p_chapter - p_care) / abs(p_care)
+    rel_d = abs(p_chapter - p_closed) / abs(p_closed)
+    code = "[RTD] §6.1, microcontroller code ('Solution to the Riccati equation')"
+    ctx.claim("the microcontroller code computes P_inf as the solution of the Riccati equation", code,
+              "the code's P_inf = (sqrt(H^2 Q R + F^2 R^2) + F R) / H^2 against the continuous-time ARE",
+              holds(rel_c <= 1e-9, f"it equals scipy's continuous-time ARE root 2FP - H^2P^2/R + Q = 0 "
+                    f"(F = -1/tau, H = 260, Q = R = 1) to 1e-9 relative (ours {rel_c:.2g}): the code solves the "
+                    "continuous-time equation"), paper="Riccati solution")
+    ctx.claim("the DARE is what the filter solves to obtain P (applied to the microcontroller code's P_inf)",
+              f"[RTD] §2.6 and {code}", "the code's P_inf against the discrete-time ARE of its own loop "
+              "P = A P A + B Q B", holds(rel_d <= 1e-6, f"the code's P_inf equals the scalar DARE solution to "
+                                           f"1e-6 relative (they differ by {rel_d:.1%})"), paper="DARE solution")
     ctx.write_table("poles", pd.DataFrame(rows))
     ctx.note("poles: the chapter prints no numbers for the DARE solution, the gain or the RC constant, so only "
              "the poles have a paper value; the chapter's Arduino Riccati formula is the continuous-time scalar "

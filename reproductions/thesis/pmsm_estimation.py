@@ -17,6 +17,7 @@ import pandas as pd
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, run_batch, run_once
 from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
+from pfbench.verdicts import DISAGREE, AGREE, UNDECIDED, Outcome, direction, holds
 
 DT = 125e-6
 FIG44_TIMES = (0.0, 0.009, 0.019, 0.028, 0.038, 0.047, 0.056, 0.066, 0.075)
@@ -59,12 +60,19 @@ def fig4_1(ctx):
         "t": t, "smc_i_alpha": smc["x"][:, 0], "smc_i_beta": smc["x"][:, 1],
         "ekf_i_alpha": ekf["x"][:, 0], "ekf_i_beta": ekf["x"][:, 1]}))
     peak = lambda o: float(np.abs(o["x"][:, :2]).max())  # noqa: E731
-    ctx.compare("peak |current| SMC / EKF", ours=f"{peak(smc):.2f} / {peak(ekf):.2f}", unit="A",
-                paper="EKF: relatively small currents; SMC larger")
+    ctx.compare("peak |current| SMC / EKF", ours=f"{peak(smc):.2f} / {peak(ekf):.2f}", unit="A")
+    ctx.claim("in contrast to the SMC, control based on the KF yields relatively small currents",
+              "[Thesis] §4.4.2, Fig. 4.1", "peak |current| SMC vs EKF (this realisation)",
+              holds(peak(smc) > peak(ekf), f"peak |i| with the SMC ({peak(smc):.2f} A) > with the EKF "
+                                           f"({peak(ekf):.2f} A)"), paper="EKF smaller")
     k = int(np.argmax(np.abs(smc["x"][:, :2]).max(axis=1)))
     conv = _convergence_time(smc)
-    ctx.compare("time of SMC peak current vs SMC convergence time",
-                ours=f"{k * DT:.3f} s vs {conv:.3f} s", paper="highest currents just after SMC converges")
+    ctx.compare("time of SMC peak current vs SMC convergence time", ours=f"{k * DT:.3f} s vs {conv:.3f} s")
+    ctx.claim("the highest currents are reached just after the SMC estimates become sufficiently accurate",
+              "[Thesis] §4.4.2, Fig. 4.1", "time of the SMC peak current minus the SMC convergence time",
+              holds(0.0 <= k * DT - conv <= 0.02,
+                    "peak within 20 ms after the theta estimate last enters (and stays within) 0.3 rad"),
+              paper="just after")
     ctx.note(f"Figs. 4.1-4.4 show realisation run={run} (seed {ctx.seed}); any run can be chosen with "
              "--option run=K. The thesis does not give its realisation.")
 
@@ -118,10 +126,18 @@ def fig4_2(ctx):
     for o, name in ((smc, "SMC"), (ekf, "EKF")):
         ctx.compare(f"{name}: final omega (true) / theta error, last 0.05 s",
                     ours=f"{o['x'][-k:, 2].mean():.2f} rad/s / "
-                         f"{np.abs(_wrap(o['est'][-k:, 1] - o['x'][-k:, 3])).mean():.2f} rad",
-                    paper="SMC converges; EKF theta pi off, turns the wrong way")
-        ctx.compare(f"{name}: estimation failed (our definition)", ours=bool(o["failed"]),
-                    paper="False" if name == "SMC" else "True")
+                         f"{np.abs(_wrap(o['est'][-k:, 1] - o['x'][-k:, 3])).mean():.2f} rad")
+    th_err = float(np.abs(_wrap(ekf["est"][-k:, 1] - ekf["x"][-k:, 3])).mean())
+    ctx.claim("the SMC estimate converges to the true state in this start-up", "[Thesis] §4.4.2, Fig. 4.2",
+              "SMC estimation failed (our definition), this realisation",
+              holds(not smc["failed"], "the SMC run does not fail by pfbench.plants.pmsm_control.loss"),
+              paper="converges")
+    ctx.claim("the EKF fails: it converges to the angle shifted by pi and the drive turns the opposite "
+              "way", "[Thesis] §4.4.2, Fig. 4.2", "EKF final-window |theta error| and mean true omega",
+              holds(th_err > math.pi / 2 and ekf["x"][-k:, 2].mean() < 0,
+                    f"EKF mean |theta error| over the last 0.05 s ({th_err:.2f} rad) > pi/2 and the mean "
+                    f"true speed there ({ekf['x'][-k:, 2].mean():.2f} rad/s) < 0"),
+              paper="pi off, wrong direction")
     ctx.compare("SMC step time, N=60, mean estimate (numba)", ours=step_time_us(point="mean"),
                 paper="must fit 125 us", unit="us")
 
@@ -159,11 +175,16 @@ def fig4_3(ctx):
     ctx.write_table("fig4.3", pd.DataFrame({"t": np.arange(M) * DT, "mass_far_from_truth": far,
                                             "ess": smc["ess"], "resampled": smc["resampled"]}))
     early = far[int(0.005 / DT):int(0.03 / DT)]
-    ctx.compare("posterior mass > pi/2 from true theta, 5-30 ms (mean)", ours=float(early.mean()),
-                paper="far from Gaussian, two modes in the first 0.1 s")
-    ctx.compare("time at which that mass first stays < 5 %",
-                ours=float((np.flatnonzero(far > 0.05)[-1] + 1) * DT) if (far > 0.05).any() else 0.0,
-                unit="s", paper="Gaussian after convergence")
+    ctx.compare("posterior mass > pi/2 from true theta, 5-30 ms (mean)", ours=float(early.mean()))
+    settle = float((np.flatnonzero(far > 0.05)[-1] + 1) * DT) if (far > 0.05).any() else 0.0
+    ctx.compare("time at which that mass first stays < 5 %", ours=settle, unit="s")
+    ctx.claim("the posterior is far from Gaussian (two modes) at least during the first 0.1 s",
+              "[Thesis] §4.4.2, Fig. 4.3", "mean posterior mass > pi/2 from the true theta, 5-30 ms",
+              holds(early.mean() > 0.05, f"that mass ({early.mean():.3f}) > 5 %"), paper="two modes")
+    ctx.claim("the Gaussian approximation could be sufficient after convergence", "[Thesis] §4.4.2, Fig. 4.3",
+              "time after which the far mass stays < 5 %",
+              holds(settle < 0.9 * M * DT, f"the far mass stays < 5 % from {settle:.3f} s, before the last "
+                                           "10 % of the run"), paper="unimodal after convergence")
     ctx.compare("resampling events in the run", ours=int(smc["resampled"].sum()),
                 paper="visible as sharp edges")
 
@@ -199,50 +220,165 @@ def fig4_4(ctx):
     ctx.write_table("fig4.4", df)
     bimodal = df[(df.mass_near_truth > 0.05) & (df.mass_pi_away > 0.05)]
     ctx.compare("listed times with two modes (each > 5 % mass)",
-                ours=", ".join(f"{v:.3f}" for v in bimodal.t) or "none",
-                paper="multi-modal in the initial steps, modes cut out by resampling")
+                ours=", ".join(f"{v:.3f}" for v in bimodal.t) or "none")
+    ctx.claim("the posterior is multi-modal in the initial steps and the low-probability modes are cut "
+              "out", "[Thesis] §4.4.2, Fig. 4.4", "listed times with two modes (each > 5 % mass)",
+              holds(len(bimodal) > 0 and bimodal.t.min() < 0.03 and df.t.iloc[-1] not in set(bimodal.t),
+                    "some listed time before 30 ms has two modes (each > 5 % of the mass) and the last "
+                    "listed time has one"), paper="multi-modal early, unimodal later")
+
+
+#: the EKF's theta prior sd: that of U(-pi, pi), the thesis's theta prior (§4.4.1)
+EKF_PRIOR_SD = math.pi / math.sqrt(3.0)
+#: "not significant": the 95 % interval of the paired failure-rate difference (offset pi minus
+#: offset 0) must lie within +-NO_DEP_MARGIN; at the thesis's 10 runs per point one binomial sd of a
+#: rate near 1/2 is 16 points, so differences below 20 points cannot be significant at that scale
+NO_DEP_MARGIN = 0.2
+
+
+def no_dependence(diffs, margin: float, what: str) -> Outcome:
+    """The paper says a paired difference is "not significant": disagree if the 95 % t-interval of
+    the mean difference excludes 0 (a significant dependence), agree if it lies within +-``margin``,
+    undecided otherwise (built on :func:`pfbench.verdicts.direction`'s interval)."""
+    d = direction(diffs, +1, what)
+    if d.interval is None:
+        return d
+    lo, hi = d.interval
+    rule = (f"95 % t-interval of the mean {what} over {d.n} runs: disagree if it excludes 0, agree if "
+            f"it lies within ±{margin:g}, undecided otherwise")
+    if lo > 0 or hi < 0:
+        verdict = DISAGREE
+    elif -margin <= lo and hi <= margin:
+        verdict = AGREE
+    else:
+        verdict = UNDECIDED
+    return Outcome(verdict, rule, d.ours, d.interval, d.n)
 
 
 @recipe("thesis:fig4.6", title="Estimation quality vs the prior's theta offset, EKF vs SMC (thesis Fig. 4.6)",
         quick_cost="~40 s", full_cost="~2 min",
-        options={"runs": (int, "runs per offset and estimator (default 10)"),
+        options={"runs": (int, "runs per offset and estimator (default 10, the thesis's)"),
                  "points": (int, "theta offsets in [0, pi] (quick 5, full 13)"),
-                 "prior_sd": (float, "prior standard deviation of theta (default 1.0)")})
+                 "prior_sd": (str, "comma-separated prior standard deviations of theta in rad "
+                                   "(default pi/sqrt(3),1: the EKF's spread, shown in fig4.6.png, and "
+                                   "1 rad)")})
 def fig4_6(ctx):
+    """Both filters get the Gaussian theta prior N(theta_0 + offset, sd^2). The thesis does not give
+    sd; the default is the EKF's own spread pi/sqrt(3) (that of the U(-pi, pi) prior of §4.4.1, the
+    prior of every other figure of §4.4), with which a 60-particle cloud still covers the circle;
+    sd = 1 rad is also run (with it 60 particles centred pi away almost never cover the truth)."""
     import matplotlib.pyplot as plt
 
     n_runs = ctx.option("runs", 10, int)
     n_pts = ctx.option("points", 13 if ctx.full else 5, int)
-    sd = ctx.option("prior_sd", 1.0, float)
+    sds = [float(v) for v in str(ctx.options.get("prior_sd", f"{EKF_PRIOR_SD!r},1.0")).split(",") if v.strip()]
     offsets = np.linspace(0, math.pi, n_pts)
-    rows = []
-    for off in ctx.progress(offsets, total=n_pts):
-        for est in ("smc", "ekf"):
-            cfg = LoopConfig(estimator=est, theta_offset=float(off), theta_prior_sd=sd,
-                             backend=ctx.backend)
-            r = run_batch(cfg, n_runs, seed=ctx.seed, workers=1 if est == "ekf" else None)
-            rows.append({"offset": off, "estimator": est, "theta_err": r["theta_err"].mean(),
-                         "omega_err": r["omega_err"].mean(), "failure_rate": r["failed"].mean(),
-                         "mean_loss": r["loss"].mean(), "runs": n_runs})
+    rows, per_run = [], {}
+    for sd in sds:
+        for off in ctx.progress(offsets, total=n_pts):
+            for est in ("smc", "ekf"):
+                cfg = LoopConfig(estimator=est, theta_offset=float(off), theta_prior_sd=sd,
+                                 backend=ctx.backend)
+                r = run_batch(cfg, n_runs, seed=ctx.seed, workers=1 if est == "ekf" else None)
+                per_run[(sd, float(off), est)] = r
+                rows.append({"prior_sd": sd, "offset": off, "estimator": est, "theta_err": r["theta_err"].mean(),
+                             "omega_err": r["omega_err"].mean(), "failure_rate": r["failed"].mean(),
+                             "mean_loss": r["loss"].mean(), "runs": n_runs})
     df = pd.DataFrame(rows)
     ctx.write_table("fig4.6", df)
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    for est, col in (("smc", "tab:blue"), ("ekf", "tab:red")):
-        d = df[df.estimator == est]
-        ax[0].plot(d.offset, d.theta_err, "o-", color=col, label=est.upper())
-        ax[1].plot(d.offset, 100 * d.failure_rate, "o-", color=col, label=est.upper())
-    ax[0].set(xlabel="prior theta offset [rad]", ylabel="mean |theta error|, last 0.05 s [rad]")
-    ax[1].set(xlabel="prior theta offset [rad]", ylabel="failures [%]")
-    for a in ax:
-        a.legend()
-    fig.suptitle(f"averages over {n_runs} runs per point, prior sd {sd} rad")
-    fig.tight_layout()
-    ctx.write_figure("fig4.6", fig)
-    s, e = df[df.estimator == "smc"], df[df.estimator == "ekf"]
-    ctx.compare("EKF theta error at offset 0 / pi", ours=f"{e.theta_err.iloc[0]:.2f} / {e.theta_err.iloc[-1]:.2f}",
-                unit="rad", paper="good near 0, fails for large offsets")
-    ctx.compare("SMC theta error at offset 0 / pi", ours=f"{s.theta_err.iloc[0]:.2f} / {s.theta_err.iloc[-1]:.2f}",
-                unit="rad", paper="no significant dependence")
+    ctx.write_table("fig4.6_runs", pd.DataFrame(
+        {f"failed_{est}_sd{sd:.4g}_off{off:.4g}": r["failed"] for (sd, off, est), r in per_run.items()}))
+    where = "[Thesis] §4.4.2, Fig. 4.6"
+    for sd in sds:
+        d = df[df.prior_sd == sd]
+        fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+        for est, col in (("smc", "tab:blue"), ("ekf", "tab:red")):
+            e = d[d.estimator == est]
+            ax[0].plot(e.offset, e.theta_err, "o-", color=col, label=est.upper())
+            ax[1].plot(e.offset, 100 * e.failure_rate, "o-", color=col, label=est.upper())
+        ax[0].set(xlabel="prior theta offset [rad]", ylabel="mean |theta error|, last 0.05 s [rad]")
+        ax[1].set(xlabel="prior theta offset [rad]", ylabel="failures [%]")
+        for a in ax:
+            a.legend()
+        fig.suptitle(f"averages over {n_runs} runs per point, prior sd {sd:.3g} rad")
+        fig.tight_layout()
+        ctx.write_figure("fig4.6" if sd == sds[0] else f"fig4.6_sd{sd:.3g}", fig)
+        lo_off, hi_off = float(offsets[0]), float(offsets[-1])
+        fail = {est: (per_run[(sd, hi_off, est)]["failed"].astype(float)
+                      - per_run[(sd, lo_off, est)]["failed"].astype(float)) for est in ("smc", "ekf")}
+        ctx.claim("the SMC's dependence on the difference between prior estimate and initial state "
+                  "is not significant", where,
+                  f"SMC failure(offset pi) - failure(offset 0) per run, prior sd {sd:.3g}",
+                  no_dependence(fail["smc"], NO_DEP_MARGIN, "paired failure difference"),
+                  paper="not significant")
+        ctx.claim("the EKF gives good results if the initial state is not very different from the prior "
+                  "estimate (and fails otherwise)", where,
+                  f"EKF failure(offset pi) - failure(offset 0) per run, prior sd {sd:.3g}",
+                  direction(fail["ekf"], +1, "paired failure difference"), paper="> 0")
+        s, e = d[d.estimator == "smc"], d[d.estimator == "ekf"]
+        ctx.compare(f"EKF / SMC failure rate range over offsets, prior sd {sd:.3g}",
+                    ours=f"EKF {100 * e.failure_rate.min():.0f}-{100 * e.failure_rate.max():.0f} %, "
+                         f"SMC {100 * s.failure_rate.min():.0f}-{100 * s.failure_rate.max():.0f} %")
+        ctx.compare(f"EKF / SMC theta error at offset 0 and pi, prior sd {sd:.3g}",
+                    ours=f"EKF {e.theta_err.iloc[0]:.2f} / {e.theta_err.iloc[-1]:.2f}, "
+                         f"SMC {s.theta_err.iloc[0]:.2f} / {s.theta_err.iloc[-1]:.2f}", unit="rad")
     ctx.note(f"Fig. 4.6: the thesis does not state the prior used for this figure. Both filters get a "
-             f"Gaussian theta prior N(theta_0 + offset, {sd}^2) (wrapped; SMC particles drawn from it); "
-             "'quality' is the mean |theta error| over the final 0.05 s; PI on the posterior mean.")
+             f"Gaussian theta prior N(theta_0 + offset, sd^2) (wrapped; SMC particles drawn from it) with "
+             f"sd = {', '.join(f'{v:.3g}' for v in sds)} rad; fig4.6.png shows sd {sds[0]:.3g} (the EKF's "
+             "spread pi/sqrt(3), that of the U(-pi, pi) prior of the other figures). 'Quality' is the mean "
+             "|theta error| over the final 0.05 s and the failure rate; PI on the posterior mean. The "
+             "offset-pi vs offset-0 runs share the plant noise (paired).")
+
+
+@recipe("thesis:fig4.5", title="Two SMC realisations with the same plant noise (thesis Fig. 4.5)",
+        quick_cost="~10 s", full_cost="~10 s",
+        options={"run": (int, "which plant realisation (default 0)"),
+                 "streams": (str, "two comma-separated filter streams (default 1,2)")})
+def fig4_5(ctx):
+    """Same initial state, prior and plant-noise stream, two different random streams inside the
+    particle filter (:attr:`LoopConfig.filter_stream`); PI on the posterior mean."""
+    import matplotlib.pyplot as plt
+
+    run = ctx.option("run", 0, int)
+    ks = [int(v) for v in str(ctx.options.get("streams", "1,2")).split(",")][:2]
+    outs = [run_once(LoopConfig(point="mean", backend=ctx.backend, filter_stream=k), ctx.seed, run)
+            for k in ks]
+    t = np.arange(outs[0]["x"].shape[0]) * DT
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for a, o, k in zip(ax, outs, ks):
+        a.plot(t, o["x"][:, 2], "k-", label="true omega")
+        a.plot(t, o["est"][:, 0], "r--", label="SMC mean")
+        a.plot(t, o["spread"][:, 0], "r:", lw=0.7)
+        a.plot(t, o["spread"][:, 1], "r:", lw=0.7)
+        a.plot(t, o["omega_ref"], color="grey", lw=0.6, label="reference")
+        a.set(xlabel="Time [s]", title=f"filter stream {k}: omega [rad/s]")
+        a.legend(fontsize=8)
+    fig.suptitle(f"same plant realisation (seed {ctx.seed}, run {run}), different filter random numbers")
+    fig.tight_layout()
+    ctx.write_figure("fig4.5", fig)
+    ctx.write_table("fig4.5", pd.DataFrame(
+        {"t": t} | {f"omega_true_{k}": o["x"][:, 2] for k, o in zip(ks, outs)}
+        | {f"omega_est_{k}": o["est"][:, 0] for k, o in zip(ks, outs)}))
+    where = "[Thesis] §4.4.2, Fig. 4.5"
+    same_x0 = bool(np.array_equal(outs[0]["x0"], outs[1]["x0"]) and np.array_equal(outs[0]["y"][0], outs[1]["y"][0]))
+    gap = float(np.abs(outs[0]["x"][:, 2] - outs[1]["x"][:, 2]).max())
+    ctx.claim("initial state, prior and system noise are the same; differences are caused by the random "
+              "numbers inside the particle filter", where, "max |omega_1 - omega_2| of the true speeds",
+              holds(same_x0 and gap > 0.1, "same x^(0) and first measurement in both, and the true speed "
+                                           "trajectories differ by more than 0.1 rad/s somewhere"),
+              paper="the realisations differ")
+    ctx.compare("max |omega_1 - omega_2| (true speed)", ours=gap, unit="rad/s")
+    # §4.4.4 on Fig. 4.5: "for a relatively long interval at the beginning ... the mean of the
+    # posterior on omega is close to zero although the true value is nonzero with high probability"
+    lag = []
+    for o in outs:
+        w, wh = o["x"][:, 2], o["est"][:, 0]
+        k = int(np.argmax(np.abs(w) > 1.0)) if (np.abs(w) > 1.0).any() else len(w)
+        lag.append(float(np.mean(np.abs(wh[k:k + int(0.01 / DT)]) < 0.5 * np.abs(w[k:k + int(0.01 / DT)]))))
+    ctx.claim("for a relatively long interval at the beginning the mean of the posterior on omega is close "
+              "to zero although the true value is nonzero", "[Thesis] §4.4.4 (on Fig. 4.5)",
+              "share of the 10 ms after |omega| first exceeds 1 rad/s in which |omega_hat| < |omega| / 2",
+              holds(min(lag) > 0.5, "in both realisations, |mean estimate| < half the true |omega| in more "
+                                    "than half of the 10 ms after the true speed first exceeds 1 rad/s"),
+              paper="mean close to zero")
+    ctx.compare("that share, realisation 1 / 2", ours=f"{lag[0]:.2f} / {lag[1]:.2f}")

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from pfbench import recipes
+from pfbench import recipes, report
 from pfbench.cli import main
 
 HERE = Path(__file__).parent
@@ -65,14 +65,14 @@ def _seed1_set(tmp_path, refs):
 
 
 def _damaged(root):
-    return [p for p in recipes.check_results(root)[1] if p.damaged and p.recipe == "thesis:fig2.2"]
+    return [p for p in report.check_results(root)[1] if p.damaged and p.recipe == "thesis:fig2.2"]
 
 
 def _assert_consistent_or_flagged(root, refs):
     """Either the record verifies and every file is the clean run of the record's seed, or
     report lists the recipe as damaged (and --strict exits 2)."""
     d = root / "thesis"
-    rec, problems = recipes.verify(d / "fig2.2.json", "thesis:fig2.2")
+    rec, problems = report.verify(d / "fig2.2.json", "thesis:fig2.2")
     if not problems:
         for f in FILES:
             assert (d / f).read_bytes() == refs[rec["seed"]][f], (f, rec["seed"])

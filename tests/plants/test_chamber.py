@@ -75,3 +75,14 @@ def test_reproducible():
     a = chamber.heating_normal(seed=5, duration_s=100)
     b = chamber.heating_normal(seed=5, duration_s=100)
     np.testing.assert_array_equal(a.y, b.y)
+
+
+def test_mixing_bump_is_below_the_sensor_step(hc):
+    # the docstring says the §5.2 mixing bump is NOT reproduced at the sensor: it exists in the bulk air,
+    # is smaller at the lagged sensor element, and stays below the 0.0625 degC step (catches a retune of
+    # the mixing that makes the docstring wrong, or a bump measured at the wrong sample)
+    b = chamber.mixing_bump(hc)
+    assert 0.0 < b["sensor"] < b["air"] < chamber.RESOLUTION
+    k = hc.info["k_switch"]
+    assert b["air"] == pytest.approx(np.max(hc.air[k:k + 60]) - hc.air[k])
+    assert b["measured"] == pytest.approx(np.max(hc.y[k:k + 60]) - hc.y[k])

@@ -12,6 +12,9 @@ then per step 4 process + 2 measurement normals), the filter (initial particles 
 noise) and the point estimate (one uniform per step for the "random sample" estimate). The
 plant stream is the same whatever estimator / controller / point estimate is used, so the
 comparisons of Figs. 4.7 and 4.9 use identical random numbers in all variants.
+``LoopConfig.filter_stream = k`` (k >= 0) replaces the filter and point-estimate streams by those of
+``SeedSequence([seed, run, k])`` while keeping the plant stream: the same plant noise with other
+random numbers inside the particle filter (Fig. 4.5).
 
 The SMC is the reduced PMSM model + the generic guided filter (:mod:`.smc`), stepped inside the
 loop. The SMC run is one compiled numba function (``backend="numba"``, calling the compiled guided
@@ -144,7 +147,7 @@ class LoopConfig:
     n_particles: int = 60
     ess_threshold: float = ESS_FRACTION  # resample when N_eff < this * N (Table 4.2: 12 of 60)
     resampling: str = "residual_deterministic"  # Table 4.2
-    point: str = "mean"               # mean | sample | max  (SMC)
+    point: str = "mean"               # mean | sample | max | max_weight  (SMC)
     controller: str = "pi"            # pi | cc | cec
     horizon: int = 80                 # CC/CEC horizon n
     q_theta_filter: float = Q_THETA_FILTER
@@ -156,11 +159,18 @@ class LoopConfig:
     model_kw: dict = field(default_factory=dict)
     backend: str = "numba"
     store_particles: bool = False
+    filter_stream: int | None = None  # k >= 0: filter/point streams of SeedSequence([seed, run, k])
 
 
-def _streams(seed, run):
+def _streams(seed, run, filter_stream=None):
     ss = np.random.SeedSequence([int(seed), int(run)])
-    return [np.random.default_rng(s) for s in ss.spawn(3)]
+    plant, filt, point = [np.random.default_rng(s) for s in ss.spawn(3)]
+    if filter_stream is not None:
+        if int(filter_stream) < 0:
+            raise PfbenchError(f"filter_stream must be >= 0, got {filter_stream}")
+        filt, point = [np.random.default_rng(s) for s in
+                       np.random.SeedSequence([int(seed), int(run), int(filter_stream)]).spawn(2)]
+    return plant, filt, point
 
 
 def run_once(cfg: LoopConfig, seed: int = 0, run: int = 0) -> dict:
@@ -173,7 +183,7 @@ def run_once(cfg: LoopConfig, seed: int = 0, run: int = 0) -> dict:
     mp = model.param_array()
     cp = cfg.gains.array(model)
     cp[7] = cfg.gains.gamma
-    rng_plant, rng_filter, rng_point = _streams(seed, run)
+    rng_plant, rng_filter, rng_point = _streams(seed, run, cfg.filter_stream)
     x0 = Pmsm.initial(rng_plant, 1, model.params())[0].copy()
     w_ref = cfg.scenario.reference(model.dt)
     M = w_ref.shape[0]

@@ -14,7 +14,8 @@ proposal + the generic guided filter, plus the thesis point estimates used for c
   differences are wrapped to (-pi, pi] before entering the kernel (so the two ends of the circle
   are neighbours) and the bandwidths are h = sigma N^(-1/6) (Silverman's rule in 2-D) with sigma
   the weighted standard deviation of omega and the circular standard deviation sqrt(-2 ln R) of
-  theta, floored at 1e-3. Also the spread (omega range and max theta distance of the particles
+  theta, floored at 1e-3; ``max_weight`` = the other reading of "maximum" ([Thesis] §4.4.5 does
+  not say which): the particle with the largest normalised weight (first one on ties). Also the spread (omega range and max theta distance of the particles
   with weight >= 1e-4) for plotting bounds.
 
 Time convention of :func:`run_smc` (the closed loop's): ``u[t]`` is the input applied between step t
@@ -42,7 +43,7 @@ from ...filters.inputs import ess_count, seed_sequence
 from ...models.pmsm import Q_THETA_FILTER, Pmsm, PmsmReduced, wrap_angle
 from ...resampling import Scheme
 
-POINT_MODES = {"mean": 0, "sample": 1, "max": 2}
+POINT_MODES = {"mean": 0, "sample": 1, "max": 2, "max_weight": 3}
 #: Table 4.2: resample when N_eff < 12 of N = 60 particles
 ESS_FRACTION = 0.2
 
@@ -103,7 +104,8 @@ def _weighted_moments(om, th, wn):
 
 @register_jitable
 def point_estimate(om, th, wn, mode, rng_point, out):
-    """(omega, theta) point estimate into ``out`` (2,): 0 mean, 1 random sample, 2 maximum.
+    """(omega, theta) point estimate into ``out`` (2,): 0 mean, 1 random sample, 2 maximum
+    (kernel-density mode), 3 maximum (highest-weight particle).
 
     Also returns the spread (omega_min, omega_max, max |wrap(theta_i - theta_hat)|) over the
     particles with normalised weight >= 1e-4 via out[2:5], for plotting bounds.
@@ -151,6 +153,13 @@ def point_estimate(om, th, wn, mode, rng_point, out):
         for k in range(n):
             if dens[k] > best:
                 best = dens[k]
+                j = k
+        out[0] = om[j]
+        out[1] = th[j]
+    elif mode == 3:
+        j = 0
+        for k in range(1, n):
+            if wn[k] > wn[j]:
                 j = k
         out[0] = om[j]
         out[1] = th[j]

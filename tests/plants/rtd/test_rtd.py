@@ -186,3 +186,88 @@ def test_bath_recipe_on_data(tmp_path):
     pd.DataFrame({"t": t, "y": y, "u": np.full(t.size, 25.0)}).to_csv(flat, index=False)
     with pytest.raises(DataError, match="step up"):
         _run("rtd:fig6", tmp_path, data=flat)
+    # on one log the fig6 claims are decided on its single run (no interval over runs)
+    assert ctx.claims and all(c["verdict"] in ("agree", "disagree") and "on the one log" in c["rule"]
+                              for c in ctx.claims)
+
+
+# ----------------------------------------------------------------------------- Figs. 2-4 model curves
+
+def test_tf_bode_is_eq52_evaluated_on_the_imaginary_axis():
+    """Catches a Hz/rad-s mix-up or a wrong numerator/denominator: the Bode data must equal
+    20 log10 |G(jw)| and arg G(jw) computed directly from the eq. 52 polynomials."""
+    w = np.logspace(-3, 2, 50)
+    w_out, mag, phase = rtd.tf_bode(w)
+    g = np.polyval(rtd.TF_NUM, 1j * w) / np.polyval(rtd.TF_DEN, 1j * w)
+    np.testing.assert_allclose(w_out, w)
+    np.testing.assert_allclose(mag, 20 * np.log10(np.abs(g)), atol=1e-9)
+    np.testing.assert_allclose(phase, np.degrees(np.angle(g)), atol=1e-7)
+    # relative degree 1: -20 dB/decade far above the fast pole (2.42 rad/s); within 0.5 dB at 100 rad/s
+    _, m2, _ = rtd.tf_bode([100.0, 1000.0])
+    assert m2[1] - m2[0] == pytest.approx(-20.0, abs=0.5)
+    with pytest.raises(InputError):
+        rtd.tf_bode([0.0, 1.0])
+
+
+def test_tf_step_is_the_zoh_model_at_the_samples():
+    """ZOH discretisation is exact for a step input, so the continuous step response of eq. 52 at
+    t = k Ts equals the discrete model's response (catches a wrong amplitude or a time shift)."""
+    t = np.arange(200) * rtd.TS
+    y = rtd.tf_step(t, 38.0)
+    np.testing.assert_allclose(y, rtd.identified_model().simulate(np.full(200, 38.0)), atol=1e-6)
+    # final value 38 x DC gain (slow pole 0.0701: e^-0.0701*300 ~ 7e-10)
+    assert rtd.tf_step(np.linspace(0, 300, 3001))[-1] == pytest.approx(38.0 * 0.1711 / 0.1695, rel=1e-6)
+    with pytest.raises(InputError):
+        rtd.tf_step([1.0, 0.5])
+
+
+RTD_RECIPES = ("rtd:poles", "rtd:fig2", "rtd:fig3", "rtd:fig4", "rtd:fig5", "rtd:fig6", "rtd:fig7")
+
+
+def test_every_rtd_recipe_records_computed_claims(tmp_path):
+    from pfbench import recipes
+    from pfbench.verdicts import VERDICTS
+
+    ids = {r.id for r in recipes.select("rtd")}
+    assert set(RTD_RECIPES) <= ids
+    claims = {}
+    for name in sorted(ids):
+        opts = {"seeds": "2"} if name in ("rtd:fig6", "rtd:fig7") else {}
+        ctx = _run(name, tmp_path, options=opts)
+        assert ctx.claims, f"{name} records no claim"
+        for c in ctx.claims:
+            assert c["verdict"] in VERDICTS and c["rule"] and c["where"].startswith("[RTD]"), (name, c)
+        claims[name] = {c["quantity"]: c for c in ctx.claims}
+    # the measured curves of Figs. 2 and 4 are lost: claimed not reproducible, and the figures exist
+    for name in ("rtd:fig2", "rtd:fig4"):
+        assert "not reproducible" in {c["verdict"] for c in claims[name].values()}
+        assert (tmp_path / "rtd" / f"{name.split(':')[1]}.png").stat().st_size > 10_000
+    assert (tmp_path / "rtd" / "fig3.png").exists()
+    # pinned findings (a change of behaviour is noticed): poles agree to the printed decimals; the
+    # microcontroller formula is the continuous-time ARE root, not the DARE of its discrete loop;
+    # the Bode diagram of eq. 52 has a -20 dB/decade roll-off (near pole-zero cancellation)
+    po = claims["rtd:poles"]
+    assert po["eq. 52 pole 1"]["verdict"] == po["eq. 52 pole 2"]["verdict"] == "agree"
+    cont = [c for q, c in po.items() if "continuous-time ARE" in q]
+    disc = [c for q, c in po.items() if "discrete-time ARE" in q]
+    assert [c["verdict"] for c in cont] == ["agree"] and [c["verdict"] for c in disc] == ["disagree"]
+    assert claims["rtd:fig3"]["high-frequency slope of the Bode magnitude"]["verdict"] == "disagree"
+    # the fig6/fig7 claims are decided from per-run paired differences over the 2 runs
+    for c in list(claims["rtd:fig6"].values()) + list(claims["rtd:fig7"].values()):
+        assert c["n"] == 2 and "t-interval" in c["rule"]
+
+
+def test_fig5_bound_claim_counts_runs(tmp_path):
+    """The '< 1 degC after 45 s' claim is a rate over the Monte Carlo runs of fig5_mc.csv."""
+    ctx = _run("rtd:fig5", tmp_path)
+    mc = pd.read_csv(tmp_path / "rtd" / "fig5_mc.csv")
+    c = {c["quantity"]: c for c in ctx.claims}
+    every = c["runs whose max |error| over t >= 45 s is < 1 degC"]
+    assert every["n"] == len(mc) and every["ours"] == pytest.approx(np.mean(mc["max_abs_err_after_45s"] < 1.0))
+    at45 = c["runs with |error at t = 45 s| < 1 degC"]
+    assert at45["ours"] == pytest.approx(np.mean(np.abs(mc["err_at_45s"]) < 1.0))
+
+
+def test_bath_seeds_option_checked(tmp_path):
+    with pytest.raises(InputError, match="seeds"):
+        _run("rtd:fig6", tmp_path, options={"seeds": "1"})

@@ -1,0 +1,242 @@
+"""``pfbench report``: every result set verified against its checksums, a scorecard of the papers'
+claims per paper, and the paper-vs-ours tables, in ``results/REPORT.md`` (and ``--json``)."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import io
+from .errors import PfbenchError
+from . import recipes as _recipes
+from .recipes import PAPERS, _leftovers, _lock_path, discover, needs_hint
+from .verdicts import VERDICTS
+
+
+@dataclass
+class Problem:
+    """One line of the report's "Not reproduced / damaged" section."""
+
+    recipe: str
+    what: str
+    redo: str
+    damaged: bool = True     # a damaged/incomplete result (a warning; ``report --strict`` fails)
+
+    def line(self) -> str:
+        return f"`{self.recipe}`: {self.what}; {self.redo}"
+
+
+def verify(path: str | Path, recipe_id: str) -> tuple[dict | None, list[str]]:
+    """Read the provenance record ``path`` of ``recipe_id`` and check it against the files on
+    disk: ``(record or None, [problems])``. A problem is an unreadable/garbage record, a record of
+    another recipe, a record without checksums (written before they were recorded), a missing
+    artefact or one whose SHA-256 differs from the record's."""
+    path = Path(path)
+    try:
+        rec = io.loads(path.read_text(errors="replace"), str(path))
+    except OSError as exc:
+        return None, [f"record {path} cannot be read ({exc.strerror or exc})"]
+    except PfbenchError as exc:
+        return None, [f"record {path} is damaged: {str(exc).split(': ', 1)[-1]}"]
+    if not isinstance(rec, dict) or not isinstance(rec.get("recipe"), str):
+        return None, [f"record {path} is damaged: not a provenance record"]
+    if rec["recipe"] != recipe_id:
+        return None, [f"record {path} is damaged: it names recipe {rec['recipe']!r}"]
+    arts = rec.get("artefacts")
+    if not isinstance(arts, dict):
+        return rec, [f"record {path} has no artefact checksums (written by an older pfbench or "
+                     "edited): its files cannot be verified"]
+    problems, bad = [], []
+    for rel, digest in arts.items():
+        f = path.parent / rel
+        try:
+            ok = io.sha256(f) == digest
+        except FileNotFoundError:
+            problems.append(f"{f} is missing")
+            continue
+        except OSError as exc:
+            problems.append(f"{f} cannot be read ({exc.strerror or exc})")
+            continue
+        if not ok:
+            bad.append(rel)
+    if bad:
+        problems.append(f"{', '.join(bad)} do{'es' if len(bad) == 1 else ''} not match the record "
+                        f"(seed {rec.get('seed')}, {rec.get('created_utc')}): the files were changed "
+                        "or a later run was interrupted")
+    return rec, problems
+
+
+def check_results(out_root: str | Path = "results") -> tuple[list[dict], list[Problem]]:
+    """Every verified provenance record under ``out_root`` and every problem (damaged or
+    incomplete result sets, recipes with no result)."""
+    out_root = Path(out_root)
+    reg = discover()
+    records, problems = [], []
+    seen = set()
+    for paper in PAPERS:
+        d = out_root / paper
+        try:
+            files = sorted(p for p in d.glob("*.json") if not p.name.endswith(".data.json"))
+        except OSError:
+            files = []
+        for p in files:
+            rid = f"{paper}:{p.stem}"
+            redo = f"redo: `pfbench reproduce {rid}`"
+            rec, probs = verify(p, rid)
+            if rid not in reg and rec is None:
+                problems.append(Problem(rid, "; ".join(probs) + " (no such recipe)", "remove the file"))
+                continue
+            seen.add(rid)
+            if probs:
+                problems.append(Problem(rid, "; ".join(probs), redo))
+            if rec is not None and not probs:
+                records.append(rec)
+            elif rec is not None:
+                rec = dict(rec, damaged=True)
+                records.append(rec)
+            if any(_leftovers(d, p.stem)) and not _locked(d, p.stem):
+                problems.append(Problem(rid, "an interrupted run left a staging directory (the "
+                                        "result above is the previous complete one)",
+                                        "it is removed by the next `pfbench reproduce " + rid + "`",
+                                        damaged=False))
+    for rid, r in reg.items():
+        if rid in seen:
+            continue
+        if r.needs and not _recipes.needs_met(r.needs):
+            problems.append(Problem(rid, f"not run: {needs_hint(r.needs)}",
+                                    f"then `pfbench reproduce {rid}`", damaged=False))
+        else:
+            problems.append(Problem(rid, "not run (no result)", f"run `pfbench reproduce {rid}`",
+                                    damaged=False))
+    return records, problems
+
+
+def _locked(out_dir: Path, name: str) -> bool:
+    """Whether a run of recipe ``name`` holds its lock now."""
+    import fcntl
+
+    try:
+        fd = os.open(_lock_path(out_dir, name), os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return False
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+
+
+def scorecard(records: list[dict]) -> dict:
+    """Per paper: how many claims, and how many of each verdict (:mod:`pfbench.verdicts`)."""
+    out = {}
+    for paper in PAPERS:
+        counts = {v: 0 for v in VERDICTS}
+        for r in records:
+            if r["recipe"].startswith(paper + ":"):
+                for c in r.get("claims") or []:
+                    if isinstance(c, dict) and c.get("verdict") in counts:
+                        counts[c["verdict"]] += 1
+        out[paper] = {"claims": sum(counts.values()), **counts}
+    return out
+
+
+def _fmt(v) -> str:
+    """A table cell: numbers shortened, ``|`` escaped and line breaks folded (Markdown tables)."""
+    if isinstance(v, float):
+        text = f"{v:.4g}"
+    elif isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v):
+        text = f"[{v[0]:.3g}, {v[1]:.3g}]"
+    else:
+        text = "-" if v is None else str(v)
+    return " ".join(text.split()).replace("|", "\\|")
+
+
+def _claims_table(claims: list[dict]) -> list[str]:
+    lines = ["| claim | where | quantity | ours | 95 % interval | paper | verdict | rule |",
+             "|---|---|---|---|---|---|---|---|"]
+    for c in claims:
+        rule = f"{c.get('rule')}{'; ' + c['note'] if c.get('note') else ''}"
+        lines.append(f"| {_fmt(c.get('claim'))} | {_fmt(c.get('where'))} | {_fmt(c.get('quantity'))} | "
+                     f"{_fmt(c.get('ours'))} | {_fmt(c.get('interval'))} | {_fmt(c.get('paper'))} | "
+                     f"**{c.get('verdict')}** | {_fmt(rule)} |")
+    return lines + [""]
+
+
+def report_data(out_root: str | Path = "results") -> dict:
+    """The report as data (``pfbench report --json``): scorecard, claims per recipe, problems."""
+    records, problems = check_results(out_root)
+    return {"scorecard": scorecard(records),
+            "recipes": {r["recipe"]: {"mode": r.get("mode"), "seed": r.get("seed"),
+                                      "damaged": bool(r.get("damaged")), "claims": r.get("claims") or []}
+                        for r in records},
+            "problems": [{"recipe": p.recipe, "what": p.what, "redo": p.redo, "damaged": p.damaged}
+                         for p in problems]}
+
+
+def write_report(out_root: str | Path = "results") -> tuple[Path, list[Problem]]:
+    """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``, each
+    verified against its artefacts (:func:`verify`): the scorecard first (claims and verdicts per
+    paper), then per recipe its claims, paper-vs-ours table, notes and figures (inline). Returns
+    the path and the problems, which the report lists in a "Not reproduced / damaged" section."""
+    out_root = Path(out_root)
+    records, problems = check_results(out_root)
+    card = scorecard(records)
+    lines = ["# pfbench results report", "",
+             "Generated by `pfbench report` from the provenance records under `results/`. Every claim's "
+             "verdict is computed from our data by the rule shown beside it (`pfbench.verdicts`).", "",
+             "## Scorecard", "",
+             "| paper | claims | agree | disagree | undecided | not reproducible |",
+             "|---|---|---|---|---|---|"]
+    for paper, c in card.items():
+        lines.append(f"| {paper} | {c['claims']} | {c['agree']} | {c['disagree']} | {c['undecided']} | "
+                     f"{c['not reproducible']} |")
+    lines.append("")
+    for paper, title in PAPERS.items():
+        recs = [r for r in records if r["recipe"].startswith(paper + ":")]
+        unrun = [p for p in problems if p.recipe.startswith(paper + ":") and p.what.startswith("not run")]
+        if not recs and not unrun:
+            continue
+        lines += [f"## {paper}: {title}", ""]
+        lines += [f"- {p.line()}" for p in unrun] + ([""] if unrun else [])
+        for r in recs:
+            flag = " (DAMAGED: see below)" if r.get("damaged") else ""
+            lines.append(f"### `{r['recipe']}`: {r.get('title', '')}{flag}")
+            lines.append("")
+            lines.append(f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
+                         f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, "
+                         f"{r.get('created_utc')}")
+            lines.append("")
+            claims = [c for c in r.get("claims") or [] if isinstance(c, dict)]
+            if claims:
+                lines += _claims_table(claims)
+            comps = [c for c in r.get("comparisons") or [] if isinstance(c, dict)]
+            if comps:
+                lines.append("| quantity | ours | paper | deviation | note |")
+                lines.append("|---|---|---|---|---|")
+                for c in comps:
+                    dev = c.get("deviation")
+                    q = str(c.get("quantity")) + (f" [{c['unit']}]" if c.get("unit") else "")
+                    ours, pap = c.get("ours"), c.get("paper")
+                    if ours is None and c.get("ours" + io.NONFINITE_SUFFIX):
+                        ours = c["ours" + io.NONFINITE_SUFFIX]
+                    dev = f"{dev:+.1%}" if isinstance(dev, (int, float)) else ""
+                    lines.append(f"| {_fmt(q)} | {_fmt(ours)} | {_fmt(pap)} | {dev} | {_fmt(c.get('note', ''))} |")
+                lines.append("")
+            for n in r.get("notes") or []:
+                lines.append(f"- {n}")
+            outs = [Path(str(o)).name for o in r.get("outputs") or []]
+            pngs = [o for o in outs if o.endswith(".png")]
+            if pngs:
+                lines.append("")
+                lines += [f"![{r['recipe']}: {o}]({paper}/{o})" for o in pngs]
+            if outs:
+                lines.append("")
+                lines.append("Outputs: " + ", ".join(f"`{o}`" for o in outs))
+            lines.append("")
+    if problems:
+        lines += ["## Not reproduced / damaged", ""]
+        lines += [f"- {p.line()}" for p in problems]
+        lines.append("")
+    return io.write_text(out_root / "REPORT.md", "\n".join(lines) + "\n"), problems
