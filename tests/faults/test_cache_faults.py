@@ -106,17 +106,23 @@ def _directory(p: Path) -> None:
 
 # current numba: UnpicklingError (truncated .nbc), EOFError read by click as Ctrl-C (empty .nbi,
 # "error: interrupted", exit 130), UnpicklingError (garbage .nbi), IsADirectoryError on save (.nbc dir)
+
+def _healed_run(cache, src, target, clean) -> dict:
+    """Run on the damaged cache: exit 0, one warning naming ``target``, the clean run's numbers."""
+    r = _run(["-c", SCRIPT], cache, src)
+    assert r.returncode == 0, r.stderr
+    _one_warning(r.stderr, target)
+    healed = json.loads(r.stdout.splitlines()[-1])
+    assert {k: healed[k] for k in ("est", "var", "loglik")} == {k: clean[k] for k in ("est", "var", "loglik")}
+    return healed
+
 @pytest.mark.parametrize("suffix, damage", [(".nbc", _truncate), (".nbi", _garbage), (".nbc", _directory)],
                          ids=["truncated-nbc", "garbage-nbi", "directory-nbc"])
 def test_damaged_numba_entry_is_rebuilt(template, cache, suffix, damage):
     src, _, clean, _ = template
     target = _kernel_entry(cache, suffix)
     damage(target)
-    r = _run(["-c", SCRIPT], cache, src)
-    assert r.returncode == 0, r.stderr
-    _one_warning(r.stderr, target)
-    healed = json.loads(r.stdout.splitlines()[-1])
-    assert {k: healed[k] for k in ("est", "var", "loglik")} == {k: clean[k] for k in ("est", "var", "loglik")}
+    _healed_run(cache, src, target, clean)
     assert target.is_file() and target.stat().st_size > 0
     if suffix == ".nbc":  # the rewritten entry loads again, silently (an .nbi repair leaves the .nbc in use)
         again = _run(["-c", SCRIPT], cache, src)
@@ -170,11 +176,7 @@ def test_damaged_generated_kernel_file_is_rewritten(template, cache, damage):
     target = _kernel_file(cache)
     good = target.read_bytes()
     damage(target)
-    r = _run(["-c", SCRIPT], cache, src)
-    assert r.returncode == 0, r.stderr
-    _one_warning(r.stderr, target)
-    healed = json.loads(r.stdout.splitlines()[-1])
-    assert {k: healed[k] for k in ("est", "var", "loglik")} == {k: clean[k] for k in ("est", "var", "loglik")}
+    healed = _healed_run(cache, src, target, clean)
     assert target.read_bytes() == good
     assert healed["hits"] >= 1  # same text, same stamp: the compiled kernel still loads from disk
 

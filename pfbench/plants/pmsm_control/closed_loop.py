@@ -39,8 +39,7 @@ from ...procs import process_pool
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
-from .smc import (ESS_FRACTION, N_NOISE, guided_init, guided_step, point_code, point_estimate,
-                  scheme_code, smc_model, split_particles, weights_from_log)
+from .smc import ESS_FRACTION, guided_init, point_code, scheme_code, smc_model, smc_update
 
 CONTROLLERS = {"pi": 0, "cc": 1, "cec": 2}
 
@@ -81,21 +80,9 @@ def _closed_loop_smc_py(mp, p, scheme, threshold, cp, consts, S, w_ref, x0, n, p
         zv = rng_plant.standard_normal(2)
         ys[t, 0] = x[0] + sr0 * zv[0]
         ys[t, 1] = x[1] + sr1 * zv[1]
-        if t > 0:  # inputs of the reduced model: (u_{t-1}, y_{t-1})
-            ured[0] = us[t - 1, 0]
-            ured[1] = us[t - 1, 1]
-            ured[2] = ys[t - 1, 0]
-            ured[3] = ys[t - 1, 1]
-            _, e, r, _ = guided_step(p, rng_filter, particles, lw, ys[t], ured, t, N_NOISE, scheme,
-                                     threshold, mean, var)
-            ess[t] = e
-            res[t] = r
-        else:
-            ess[t] = n
-            res[t] = False
-        weights_from_log(lw, wn)
-        split_particles(particles, om, th)
-        point_estimate(om, th, wn, point_mode, rng_point, pe)
+        k = max(t - 1, 0)
+        _, ess[t], res[t] = smc_update(p, rng_filter, rng_point, particles, lw, wn, om, th, pe, mean, var,
+                                       ured, t, ys[t], ys[k], us[k], scheme, threshold, point_mode)
         if controller == 0:
             pi_dq_control(ys[t, 0], ys[t, 1], pe[0], pe[1], w_ref[t], integ, cp, u)
         elif controller == 1:

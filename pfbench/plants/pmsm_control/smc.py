@@ -53,7 +53,7 @@ guided_step = _GUIDED.step
 N_NOISE = _GUIDED.n_noise
 
 __all__ = ["POINT_MODES", "ESS_FRACTION", "Q_THETA_FILTER", "smc_model", "point_code", "scheme_code",
-           "guided_init", "guided_step", "weights_from_log", "point_estimate", "run_smc",
+           "guided_init", "guided_step", "smc_update", "weights_from_log", "point_estimate", "run_smc",
            "shift_inputs", "step_time_us"]
 
 
@@ -189,6 +189,29 @@ def split_particles(x, om, th):
         th[i] = x[i, 1]
 
 
+@register_jitable
+def smc_update(p, rng, rng_point, x, lw, wn, om, th, pe, mean, var, ured, t, y_t, y_prev, u_prev,
+               scheme, threshold, mode):
+    """One step of the thesis SMC at step t, shared by the offline filter and the closed loop: the
+    generic guided step on the reduced model (inputs (u_{t-1}, y_{t-1}); nothing at t = 0, the
+    prior), then the normalised weights ``wn``, the particles as ``om``/``th`` and the point
+    estimate with its spread in ``pe``. Returns (log-likelihood increment, N_eff, resampled)."""
+    n = x.shape[0]
+    inc = 0.0
+    e = float(n)
+    r = False
+    if t > 0:
+        ured[0] = u_prev[0]
+        ured[1] = u_prev[1]
+        ured[2] = y_prev[0]
+        ured[3] = y_prev[1]
+        inc, e, r, _ = guided_step(p, rng, x, lw, y_t, ured, t, N_NOISE, scheme, threshold, mean, var)
+    weights_from_log(lw, wn)
+    split_particles(x, om, th)
+    point_estimate(om, th, wn, mode, rng_point, pe)
+    return inc, e, r
+
+
 def _offline_py(p, y, u, n, scheme, threshold, mode, rng, rng_point, est, ess, inc, res, spread):
     """Open-loop SMC of measured currents ``y`` (M, 2) with inputs ``u`` (M, 2) (u[t]: t -> t+1)."""
     x = np.empty((n, 2))
@@ -202,20 +225,9 @@ def _offline_py(p, y, u, n, scheme, threshold, mode, rng, rng_point, est, ess, i
     ured = np.empty(4)
     guided_init(p, rng, x, lw)
     for t in range(y.shape[0]):
-        if t > 0:
-            ured[0] = u[t - 1, 0]
-            ured[1] = u[t - 1, 1]
-            ured[2] = y[t - 1, 0]
-            ured[3] = y[t - 1, 1]
-            inc[t], ess[t], res[t], _ = guided_step(p, rng, x, lw, y[t], ured, t, N_NOISE, scheme,
-                                                    threshold, mean, var)
-        else:
-            inc[t] = 0.0
-            res[t] = False
-            ess[t] = n
-        weights_from_log(lw, wn)
-        split_particles(x, om, th)
-        point_estimate(om, th, wn, mode, rng_point, pe)
+        k = max(t - 1, 0)
+        inc[t], ess[t], res[t] = smc_update(p, rng, rng_point, x, lw, wn, om, th, pe, mean, var, ured,
+                                            t, y[t], y[k], u[k], scheme, threshold, mode)
         est[t, 0] = pe[0]
         est[t, 1] = pe[1]
         spread[t, 0] = pe[2]
