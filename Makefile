@@ -34,13 +34,14 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests
 
-# Benchmarks: pytest-benchmark suite plus `pfbench bench` (JSON under results/bench/).
+# Benchmarks: pytest-benchmark suite plus `pfbench bench --all` (engine vs the C reference, the
+# floor and `particles`; cold/warm start per method; cost vs N_p): JSON + PNG under results/bench/.
 # The `particles` comparison runs in its own environment (.venv-particles) because
 # `particles` pins an older NumPy; see scripts/bench_particles.py.
 bench: $(STAMP) .venv-particles/.installed-stamp
 	mkdir -p results/bench
 	$(BIN)/python -m pytest -q benchmarks --benchmark-enable --benchmark-json=results/bench/pytest-benchmark.json
-	$(BIN)/pfbench bench
+	$(BIN)/pfbench bench --all
 
 .venv-particles/.installed-stamp:
 	$(PYTHON) -m venv .venv-particles

@@ -71,9 +71,19 @@ def _is_path_fault(exc: OSError) -> bool:
 
 
 class PfbenchGroup(click.Group):
-    """The root group: applies the error policy of the module docstring."""
+    """The root group: applies the error policy of the module docstring, and imports the
+    subcommand groups of the subsystems (:data:`SUBSYSTEMS`) only when one is used (or listed by
+    ``--help``), so ``pfbench run`` does not pay for importing pandas and the benchmark code."""
 
     debug = False
+
+    def list_commands(self, ctx):
+        return sorted(set(super().list_commands(ctx)) | set(SUBSYSTEMS))
+
+    def get_command(self, ctx, cmd_name):
+        if cmd_name not in self.commands and cmd_name in SUBSYSTEMS:
+            _add_subsystem_command(cmd_name)
+        return super().get_command(ctx, cmd_name)
 
     def main(self, args=None, prog_name=None, **extra):  # noqa: D401
         self.debug = os.environ.get(DEBUG_ENV, "") not in ("", "0")
@@ -181,12 +191,14 @@ PARAM_HELP = "Model parameter KEY=VALUE (repeatable; JSON-typed: 3 int, 0.5 floa
               help="sir / guided: resample when N_eff < this fraction of N_p, in (0, 1] (default 0.5).")
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
 @click.option("--dtype", type=click.Choice(DTYPES), default="float64", show_default=True)
+@click.option("--threads", type=int, default=None, callback=positive_int("threads"),
+              help="numba threads for one filter's particle loops (default: all cores; 1: sequential).")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help=PARAM_HELP)
 @click.option("--data", type=click.Path(dir_okay=False), default=None,
               help="CSV log (time_s, y..., u...) to filter instead of a simulation.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def run(model_name, method, particles, filters, steps, resampling, ess_threshold, backend, dtype,
+def run(model_name, method, particles, filters, steps, resampling, ess_threshold, backend, dtype, threads,
         seed, params, data, as_json):
     """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
     import numpy as np
@@ -212,7 +224,7 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         traj = model.simulate(steps, seed=seed)
     res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
                      resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
-                     seed=seed)
+                     seed=seed, n_threads=threads)
     have_truth = bool(np.all(np.isfinite(traj.x)))
     out = {
         "model": name, "params": kw, "method": method, "backend": backend, "dtype": dtype,
@@ -381,22 +393,31 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
               help="Exit 2 if a result is damaged: a record that is not valid JSON, or an "
                    "artefact that is missing or differs from its record's checksum.")
 @click.option("--json", "as_json", is_flag=True, help="Print the scorecard, claims and problems as JSON.")
-def report(out_root, strict, as_json):
+@click.option("--compare", "compare", type=click.Path(exists=True, file_okay=False), default=None,
+              help="Another results folder (e.g. a quick run kept beside a --full one): list every "
+                   "claim whose verdict differs from it.")
+def report(out_root, strict, as_json, compare):
     """Regenerate results/REPORT.md from the provenance records, each verified against the
     checksums of its files. Damaged results are printed as warnings; they and the recipes that
     have not been run are listed in the report's "Not reproduced / damaged" section."""
     from .report import report_data, write_report
 
-    path, problems = write_report(out_root)
+    path, problems = write_report(out_root, compare)
     if as_json:
         from .io import to_json
 
-        click.echo(to_json(report_data(out_root)))
+        click.echo(to_json(report_data(out_root, compare)))
     damaged = [p for p in problems if p.damaged]
     for p in damaged:
         click.echo(f"warning: {_one_line(p.line())}", err=True)
     if not as_json:
         click.echo(f"wrote {path}")
+        if compare is not None:
+            from .report import check_results, compare_verdicts
+
+            cmp = compare_verdicts(check_results(out_root)[0], compare)
+            click.echo(f"against {compare}: {cmp['matched']} claims matched, {len(cmp['changed'])} "
+                       "changed verdict" + "".join(f"; {t}: {n}" for t, n in cmp["transitions"].items()))
     if len(problems) > len(damaged) and not as_json:
         click.echo(f"{len(problems) - len(damaged)} recipe(s) not run or with leftovers of an "
                    "interrupted run (listed in the report)")
@@ -428,19 +449,21 @@ def info(as_json):
     click.echo(f"{'models':>22}: {', '.join(data['models'])}")
 
 
-def _add_subsystem_commands() -> None:
-    for modname, attr in (("pfbench.bench", "bench"), ("pfbench.mcu.cli", "mcu"),
-                          ("pfbench.sweep.cli", "sweep")):
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as exc:
-            if exc.name == modname or (exc.name and modname.startswith(exc.name + ".")):
-                continue
-            raise
-        main.add_command(getattr(mod, attr))
+#: subcommand groups that live next to their subsystem: name -> (module, attribute), imported on use
+SUBSYSTEMS = {"bench": ("pfbench.bench", "bench"), "mcu": ("pfbench.mcu.cli", "mcu"),
+              "sweep": ("pfbench.sweep.cli", "sweep")}
 
 
-_add_subsystem_commands()
+def _add_subsystem_command(name: str) -> None:
+    """Import subsystem ``name`` and add its group to :func:`main` (nothing if it is not installed)."""
+    modname, attr = SUBSYSTEMS[name]
+    try:
+        mod = importlib.import_module(modname)
+    except ModuleNotFoundError as exc:
+        if exc.name == modname or (exc.name and modname.startswith(exc.name + ".")):
+            return
+        raise
+    main.add_command(getattr(mod, attr), name)
 
 if __name__ == "__main__":
     main()

@@ -164,10 +164,72 @@ def _claims_table(claims: list[dict]) -> list[str]:
     return lines + [""]
 
 
-def report_data(out_root: str | Path = "results") -> dict:
-    """The report as data (``pfbench report --json``): scorecard, claims per recipe, problems."""
+def _claim_key(recipe: str, c: dict) -> tuple:
+    return (recipe, str(c.get("claim")), str(c.get("where")), str(c.get("quantity")))
+
+
+def _claims_by_key(records: list[dict]) -> dict[tuple, list[dict]]:
+    out: dict[tuple, list[dict]] = {}
+    for r in records:
+        for c in r.get("claims") or []:
+            if isinstance(c, dict):
+                out.setdefault(_claim_key(r["recipe"], c), []).append(dict(c, mode=r.get("mode")))
+    return out
+
+
+def compare_verdicts(records: list[dict], other_root: str | Path) -> dict:
+    """How the verdicts of ``records`` differ from those of the result set under ``other_root``
+    (e.g. a paper-scale run against a quick one).
+
+    Claims are matched by (recipe, claim, where, quantity), repeated ones in order. Returns the
+    number matched, the claims found in one set only, the count of each verdict transition
+    ("undecided -> agree": n) and every changed claim with both verdicts and numbers.
+    """
+    other_records, _ = check_results(other_root)
+    here, there = _claims_by_key(records), _claims_by_key(other_records)
+    matched, changed, transitions = 0, [], {}
+    for key, cs in here.items():
+        olds = there.get(key, [])
+        for new, old in zip(cs, olds):
+            matched += 1
+            if new.get("verdict") != old.get("verdict"):
+                t = f"{old.get('verdict')} -> {new.get('verdict')}"
+                transitions[t] = transitions.get(t, 0) + 1
+                changed.append({"recipe": key[0], "claim": key[1], "where": key[2], "quantity": key[3],
+                                "before": old.get("verdict"), "after": new.get("verdict"),
+                                "ours_before": old.get("ours"), "ours_after": new.get("ours"),
+                                "interval_before": old.get("interval"), "interval_after": new.get("interval"),
+                                "mode_before": old.get("mode"), "mode_after": new.get("mode")})
+    n_here = sum(len(v) for v in here.values())
+    n_there = sum(len(v) for v in there.values())
+    return {"other": str(other_root), "matched": matched, "only_here": n_here - matched,
+            "only_there": n_there - matched, "transitions": dict(sorted(transitions.items())),
+            "changed": changed}
+
+
+def _comparison_lines(cmp: dict) -> list[str]:
+    lines = [f"## Verdicts against `{cmp['other']}`", "",
+             f"{cmp['matched']} claims matched, {len(cmp['changed'])} changed verdict; "
+             f"{cmp['only_here']} only here, {cmp['only_there']} only there.", ""]
+    if cmp["transitions"]:
+        lines += ["| change | claims |", "|---|---|"]
+        lines += [f"| {t} | {n} |" for t, n in cmp["transitions"].items()]
+        lines.append("")
+        lines += ["| recipe | claim | quantity | before | after | ours before | ours after |",
+                  "|---|---|---|---|---|---|---|"]
+        for c in cmp["changed"]:
+            lines.append(f"| `{c['recipe']}` | {_fmt(c['claim'])} | {_fmt(c['quantity'])} | {c['before']} | "
+                         f"{c['after']} | {_fmt(c['ours_before'])} | {_fmt(c['ours_after'])} |")
+        lines.append("")
+    return lines
+
+
+def report_data(out_root: str | Path = "results", compare: str | Path | None = None) -> dict:
+    """The report as data (``pfbench report --json``): scorecard, claims per recipe, problems, and
+    with ``compare`` the verdict changes against another result set (:func:`compare_verdicts`)."""
     records, problems = check_results(out_root)
-    return {"scorecard": scorecard(records),
+    extra = {"comparison": compare_verdicts(records, compare)} if compare is not None else {}
+    return {**extra, "scorecard": scorecard(records),
             "recipes": {r["recipe"]: {"mode": r.get("mode"), "seed": r.get("seed"),
                                       "damaged": bool(r.get("damaged")), "claims": r.get("claims") or []}
                         for r in records},
@@ -175,11 +237,14 @@ def report_data(out_root: str | Path = "results") -> dict:
                          for p in problems]}
 
 
-def write_report(out_root: str | Path = "results") -> tuple[Path, list[Problem]]:
+def write_report(out_root: str | Path = "results", compare: str | Path | None = None
+                 ) -> tuple[Path, list[Problem]]:
     """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``, each
     verified against its artefacts (:func:`verify`): the scorecard first (claims and verdicts per
-    paper), then per recipe its claims, paper-vs-ours table, notes and figures (inline). Returns
-    the path and the problems, which the report lists in a "Not reproduced / damaged" section."""
+    paper), then per recipe its claims, paper-vs-ours table, notes and figures (inline); with
+    ``compare`` (another results root, e.g. a quick run kept beside a paper-scale one) the
+    verdicts that differ from it, after the scorecard. Returns the path and the problems, which
+    the report lists in a "Not reproduced / damaged" section."""
     out_root = Path(out_root)
     records, problems = check_results(out_root)
     card = scorecard(records)
@@ -193,6 +258,8 @@ def write_report(out_root: str | Path = "results") -> tuple[Path, list[Problem]]
         lines.append(f"| {paper} | {c['claims']} | {c['agree']} | {c['disagree']} | {c['undecided']} | "
                      f"{c['not reproducible']} |")
     lines.append("")
+    if compare is not None:
+        lines += _comparison_lines(compare_verdicts(records, compare))
     for paper, title in PAPERS.items():
         recs = [r for r in records if r["recipe"].startswith(paper + ":")]
         unrun = [p for p in problems if p.recipe.startswith(paper + ":") and p.what.startswith("not run")]

@@ -14,6 +14,9 @@ Rules (all at a 95 % level):
   N_f = 10 beats the PF": from per-run paired differences, the 95 % t-interval of their mean.
   agree if it lies entirely on the paper's side of zero, disagree if entirely on the other side,
   undecided if it contains zero.
+* :func:`no_dependence` - the paper says a paired difference is "not significant": disagree if
+  the 95 % t-interval of its mean excludes 0, agree if it lies within a stated equivalence margin,
+  undecided otherwise.
 * :func:`close_to` - a numeric claim: agree if |ours - paper| <= tol |paper| (tol stated by the
   recipe, with its reason), widened by 1.96 standard errors when ours is a Monte Carlo mean;
   disagree otherwise.
@@ -78,6 +81,25 @@ def direction(samples, sign: int = +1, what: str = "difference") -> Outcome:
     else:
         verdict = UNDECIDED
     return Outcome(verdict, rule, mean, (lo, hi), n)
+
+
+def no_dependence(diffs, margin: float, what: str) -> Outcome:
+    """Equivalence: the paper says a paired difference is "not significant". Disagree if the 95 %
+    t-interval of the mean difference excludes 0 (a significant dependence), agree if it lies within
+    +-``margin``, undecided otherwise (the interval of :func:`direction`)."""
+    d = direction(diffs, +1, what)
+    if d.interval is None:
+        return d
+    lo, hi = d.interval
+    rule = (f"95 % t-interval of the mean {what} over {d.n} runs: disagree if it excludes 0, agree if "
+            f"it lies within ±{margin:g}, undecided otherwise")
+    if lo > 0 or hi < 0:
+        verdict = DISAGREE
+    elif -margin <= lo and hi <= margin:
+        verdict = AGREE
+    else:
+        verdict = UNDECIDED
+    return Outcome(verdict, rule, d.ours, d.interval, d.n)
 
 
 def close_to(ours: float, paper: float, tol: float, se: float = 0.0, why: str = "") -> Outcome:

@@ -1,10 +1,17 @@
-"""`pfbench bench` (quick mode): every figure it reports is there and is computed from the timings
-of the same run. No wall-clock value is asserted (timings belong in the benchmark itself)."""
+"""`pfbench bench`: every figure it reports is there and is computed from the timings of the same
+run; the C reference builds, filters and draws proper normals; the scaling and startup sections
+measure what they say. No wall-clock value is asserted (timings belong in the benchmark itself)."""
 import math
+import os
+import sys
 
+import numpy as np
 import pytest
 
-from pfbench.bench import run_bench
+from pfbench.bench import c_reference, main_text, run_bench, scaling, startup, summarize
+from pfbench.bench.report import TARGETS, check
+
+HAVE_CC = c_reference.compiler() is not None
 
 
 @pytest.fixture(scope="module")
@@ -17,6 +24,10 @@ def test_rows_cover_backends_and_dtypes(res):
         (b, d) for b in ("numba", "numpy") for d in ("float64", "float32")}
     for r in res["rows"]:
         assert math.isfinite(r["ns_per_particle_step"]) and r["ns_per_particle_step"] > 0
+        assert r["threads"] == (1 if r["backend"] == "numba" else None)  # targets are per 1 thread
+    for f in res["floors"]:
+        assert set(f["breakdown_ns"]) == {"normal", "exp", "memory_pass"}
+        assert all(v > 0 for v in f["breakdown_ns"].values())
 
 
 def test_ratios_are_computed_from_the_same_run(res):
@@ -25,21 +36,195 @@ def test_ratios_are_computed_from_the_same_run(res):
         assert r["ratio_to_floor"] == pytest.approx(r["ns_per_particle_step"] / r["floor_numba_ns"])
     mp = res["multipdf"]
     assert mp["speedup"] == pytest.approx(mp["ns_1_thread"] / mp["ns_2_threads"])
-    by = {(r["steps"], r["particles"], r["backend"], r["dtype"]): r for r in res["rows"]}
-    first, last = res["rows"][0], res["rows"][-1]
-    small = by[(first["steps"], first["particles"], "numba", "float64")]
-    big = (last["steps"], last["particles"])
+    for t in res["threads"]:
+        assert t["speedup"] == pytest.approx(t["ns_1_thread"] / t["ns_all_threads"])
     s = res["summary"]
-    assert s["numba_over_floor_MN1000"] == pytest.approx(small["ns_per_particle_step"] / small["floor_numba_ns"])
-    assert s["numpy_over_numba_N100000"] == pytest.approx(
-        by[big + ("numpy", "float64")]["ns_per_particle_step"] / by[big + ("numba", "float64")]["ns_per_particle_step"])
-    assert s["float32_over_float64_numba"] == pytest.approx(
-        by[(first["steps"], first["particles"], "numba", "float32")]["ns_per_particle_step"]
-        / small["ns_per_particle_step"])
+    key = (s["config"]["steps"], s["config"]["particles"])
+    big = (s["big_config"]["steps"], s["big_config"]["particles"])
+    by = {(r["steps"], r["particles"], r["backend"], r["dtype"]): r["ns_per_particle_step"] for r in res["rows"]}
+    nb = by[key + ("numba", "float64")]
+    assert s["numba_over_floor"] == pytest.approx(nb / res["floors"][0]["numba_ns"])
+    assert s["numpy_over_numba_big"] == pytest.approx(by[big + ("numpy", "float64")] / by[big + ("numba", "float64")])
+    assert s["float32_over_float64_numba"] == pytest.approx(by[key + ("numba", "float32")] / nb)
+    assert s["float32_speedup_big"] == pytest.approx(by[big + ("numba", "float64")] / by[big + ("numba", "float32")])
+    if res["c_rows"]:
+        c = {r["variant"]: r["ns_per_particle_step"] for r in res["c_rows"] if (r["steps"], r["particles"]) == key}
+        # the ratio targets use the FASTER C build
+        assert s["numba_over_c"] == pytest.approx(nb / min(c.values()))
+        assert s["numba_over_c_libc"] == pytest.approx(nb / c["libc"])
+        assert s["numpy_over_c"] == pytest.approx(by[key + ("numpy", "float64")] / min(c.values()))
     pm = res["pmsm_smc"]
     assert pm["margin_x"] == pytest.approx(pm["period_us"] / max(pm["us_per_step_mean"], pm["us_per_step_max"]))
+
+
+def test_every_target_verdict_is_computed_from_its_value(res):
+    """Catches a verdict typed by hand or a flipped comparison."""
+    assert {t["target"] for t in res["targets"]} >= {"numba_over_c", "numba_over_floor", "float32_speedup_1e5",
+                                                     "threads_speedup_1e5"}
+    for t in res["targets"]:
+        want = TARGETS[t["target"]]
+        assert (t["op"], t["bound"]) == (want.op, want.bound)
+        if t["value"] is None:
+            assert t["verdict"] == "not measured"
+        else:
+            ok = t["value"] <= t["bound"] if t["op"] in ("<=", "<") else t["value"] >= t["bound"]
+            assert t["verdict"] == ("meets" if ok else "misses")
+    assert check("numba_over_c", 0.5)["verdict"] == "meets"
+    assert check("numba_over_c", 0.6)["verdict"] == "misses"
+    assert check("threads_speedup_1e6", 1.9)["verdict"] == "meets"
+    assert check("threads_speedup_1e6", 1.7)["verdict"] == "misses"
+    assert check("cold_start_s", float("nan"))["verdict"] == "not measured"
+    text = "\n".join(main_text(res))
+    for t in res["targets"]:  # printed with its target next to it
+        assert f"target {t['op']} {t['bound']:g}" in text
+
+
+def test_without_c_the_ratios_say_not_measured(res):
+    """No compiler: the C ratios are None, their target 'not measured', the note printed; no error."""
+    s, targets = summarize(res["rows"], res["floors"], [], res["threads"], None,
+                           (res["summary"]["config"]["steps"], res["summary"]["config"]["particles"]),
+                           (res["summary"]["big_config"]["steps"], res["summary"]["big_config"]["particles"]))
+    assert s["numba_over_c"] is None and s["numpy_over_c"] is None
+    assert next(t for t in targets if t["target"] == "numba_over_c")["verdict"] == "not measured"
+    fake = dict(res, c_rows=[], c_note="not run: no C compiler", summary=s, targets=targets)
+    assert "C reference: not run: no C compiler" in "\n".join(main_text(fake))
 
 
 def test_provenance_recorded(res):
     assert res["kind"] == "bench" and res["quick"] is True
     assert {"git_sha", "host", "packages", "created_utc"} <= set(res)
+
+
+# --------------------------------------------------------------------------- the C reference
+def test_missing_or_failing_compiler_is_a_note_not_a_traceback(monkeypatch, tmp_path):
+    monkeypatch.setenv("PFBENCH_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    with pytest.raises(c_reference.CUnavailable, match="not run: no C compiler"):
+        c_reference.build("fast")
+    monkeypatch.setenv("CC", "false")  # starts, fails: one line, not a traceback
+    with pytest.raises(c_reference.CUnavailable, match="not run: C compiler failed") as ei:
+        c_reference.build("fast")
+    assert "\n" not in str(ei.value)
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no C compiler")
+@pytest.mark.parametrize("variant", sorted(c_reference.VARIANTS))
+def test_c_filter_runs_and_tracks_the_state(variant):
+    """The host build of pf_ob1.c filters: finite SSE, far below that of ignoring the data.
+
+    The estimate 0 has SSE = sum x^2. A filter that ignores the measurements (mutation: every
+    weight 1) gives about 0.75 sum x^2 on Ob1; the bootstrap filter about 0.1-0.35 sum x^2 (M=1000,
+    N_p=500) -- half of sum x^2 separates the two."""
+    r = c_reference.filter_ns(variant, 1000, 500, 1, seed=3)
+    assert r["rng"] == c_reference.RNG[variant]
+    assert math.isfinite(r["sse"]) and r["sse"] > 0
+    assert r["sse"] < 0.5 * r["sum_x2"]
+    assert r["ns_per_particle_step"] > 0 and len(r["ns_repeats"]) == 1
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no C compiler")
+def test_c_build_is_cached_and_keyed_on_the_sources():
+    a = c_reference.build("fast")
+    assert c_reference.build("fast")["path"] == a["path"]  # second call: the cached file
+    assert a["path"] != c_reference.build("libc")["path"]  # flags are in the key
+    assert "-O3" in a["flags"] and "-march=native" in a["flags"]
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no C compiler")
+def test_fast_rng_normals_are_standard_normal():
+    """Moments of n = 10^6 draws of the ziggurat against N(0, 1), each within 5 standard errors
+    (fixed seed): mean SE = 1/sqrt(n); sample variance SE = sqrt(2/n) (Var z^2 = 2); E z^4 = 3
+    with SE sqrt(96/n) (Var z^4 = 105 - 9); P(|z| > r) for the ziggurat's tail edge r = 3.6541...
+    (the tail branch) = erfc(r/sqrt 2) = 2.58e-4, binomial SE. Catches wrong tables, a lost sign
+    bit, a broken tail or wedge test."""
+    z = c_reference.normals(1_000_000, seed=7)
+    n = z.size
+    assert n == 1_000_000 and np.isfinite(z).all()
+    assert abs(z.mean()) < 5 / math.sqrt(n)
+    assert abs(z.var() - 1) < 5 * math.sqrt(2 / n)
+    assert abs((z ** 4).mean() - 3) < 5 * math.sqrt(96 / n)
+    r = 3.6541528853610088
+    p = math.erfc(r / math.sqrt(2))
+    assert abs(np.mean(np.abs(z) > r) - p) < 5 * math.sqrt(p * (1 - p) / n)
+    assert abs(np.mean(z > 0) - 0.5) < 5 * math.sqrt(0.25 / n)
+
+
+# --------------------------------------------------------------------------- scaling
+def test_scaling_plan():
+    for n, m in scaling.plan():
+        assert m >= scaling.MIN_STEPS
+        assert m == scaling.MIN_STEPS or abs(n * m - scaling.TARGET_PARTICLE_STEPS) <= n
+    assert [n for n, _ in scaling.plan()] == [10 ** k for k in range(2, 8)]
+
+
+def test_scaling_runs_skips_what_does_not_fit_and_plots(monkeypatch, tmp_path):
+    """Tiny sizes; then a memory budget between two sizes: the larger is skipped with the reason,
+    and the top is said to be limited by memory."""
+    res = scaling.run_scaling(repeats=1, sizes=(100, 1000), target=2000, progress=False)
+    assert {(r["engine"], r["particles"]) for r in res["rows"]} == {
+        (e, n) for e in scaling.ENGINES for n in (100, 1000)}
+    by = {(r["engine"], r["particles"]): r["ns_per_particle_step"] for r in res["rows"]}
+    for n in (100, 1000):
+        assert res["threads_speedup"][str(n)] == pytest.approx(by[("numba_1t", n)] / by[("numba_all", n)])
+    assert "sizes asked" in res["top_limited_by"]
+    scaling.plot(res, tmp_path / "s.png")
+    assert (tmp_path / "s.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    from pfbench import models
+
+    model = models.get("ob1")
+    small = max(scaling._need(model, e, 100, 20) for e in scaling.ENGINES)
+    monkeypatch.setattr(scaling, "_budget", lambda: (small, "test budget"))
+    res = scaling.run_scaling(repeats=1, sizes=(100, 1000), target=2000, progress=False)
+    for r in res["rows"]:  # skipped exactly when the estimate exceeds the budget
+        too_big = r["memory_need_bytes"] > small
+        assert (r["ns_per_particle_step"] is None) == too_big
+        assert r.get("skipped", "").startswith("memory") == too_big
+    assert any(r.get("skipped") for r in res["rows"] if r["particles"] == 1000)
+    assert res["top_limited_by"].startswith("memory")
+
+
+# --------------------------------------------------------------------------- startup
+def test_startup_cases_use_models_that_declare_the_structure():
+    """mpf needs a model with linear and nonlinear states, guided one with a proposal, kalman one
+    whose states are all linear (catches a case that would time an error or a one-copy MPF)."""
+    from pfbench import models
+    from pfbench.filters.methods import Method
+
+    assert {m for m, _, _ in startup.CASES} == {m.label for m in Method}
+    for method, name, _ in startup.CASES:
+        model = models.get(name)
+        ls = tuple(getattr(model, "linear_states", None) or ())
+        if method == "mpf":
+            assert 0 < len(ls) < model.n_x
+        elif method == "guided":
+            assert getattr(model, "proposal_kind", None) in ("proposal", "optimal")
+        elif method == "kalman":
+            assert len(ls) == model.n_x
+
+
+def test_startup_cold_is_empty_cache_warm_is_the_filled_one(monkeypatch, tmp_path):
+    """With a stand-in command: the cold run sees empty cache dirs, the warm runs the one it filled,
+    the temporary caches are removed, a failing command is reported (catches warm runs on a fresh
+    cache, a cold run on a used one, a leaked cache, a swallowed error)."""
+    log = tmp_path / "log"
+    script = ("import os, sys; c = os.environ['PFBENCH_CACHE_DIR']; n = os.environ['NUMBA_CACHE_DIR'];"
+              "state = 'filled' if os.path.exists(c) else 'empty';"
+              "os.makedirs(c, exist_ok=True); os.makedirs(n, exist_ok=True);"
+              f"open({str(log)!r}, 'a').write(state + ' ' + c + chr(10));"
+              "bad = '--model' in sys.argv and sys.argv[sys.argv.index('--model') + 1] == 'bad';"
+              "bad and sys.stderr.write('error: boom' + chr(10)); sys.exit(2 if bad else 0)")
+    monkeypatch.setattr(startup, "pfbench_command", lambda: [sys.executable, "-c", script])
+    res = startup.run_startup(repeats=2, cold_repeats=1, progress=False,
+                              cases=(("bootstrap", "ob1", ()), ("kalman", "bad", ())))
+    lines = [ln.split(" ", 1) for ln in log.read_text().splitlines()]
+    assert [s for s, _ in lines[:3]] == ["empty", "filled", "filled"]
+    assert len({c for _, c in lines[:3]}) == 1  # warm runs on the cache the cold run filled
+    assert not any(os.path.exists(c) for _, c in lines)
+    good, bad = res["cases"]
+    assert len(good["warm_runs_s"]) == 2 and good["error"] is None
+    assert good["warm_s"] == pytest.approx(float(np.median(good["warm_runs_s"])))
+    assert good["compile_s"] == pytest.approx(good["cold_s"] - good["warm_s"])
+    assert bad["cold_s"] is None and "boom" in bad["error"]
+    assert res["targets"][1]["verdict"] == "not measured"
+    assert "--steps 100 --particles 1000" in good["command"]

@@ -80,3 +80,26 @@ def test_table_cells_escape_pipes():
     row = report._claims_table([{"claim": "max |e| small", "where": "w", "quantity": "q", "ours": 1.0,
                                  "verdict": "agree", "rule": "|ours - paper| <= 10 %"}])[2]
     assert row.replace("\\|", "").count("|") == 9
+
+
+def test_compare_lists_the_verdicts_that_changed(results, tmp_path):
+    """`report --compare OTHER`: the claims whose verdict differs between two result sets (how the
+    closing note of a paper-scale run lists what changed against quick mode). Catches claims matched
+    by position instead of by (recipe, claim, where, quantity), and unchanged claims listed."""
+    rec = recipes.resolve("thesis:fig2.2")
+
+    def func(ctx):
+        rec.func(ctx)
+        ctx.claim("A beats B", "[Thesis] §0", "paired difference", verdicts.direction([1.0, -1.1, 0.9, -1.2]))
+        ctx.claim("measured data", "[Thesis] §0", "-", verdicts.not_reproducible("the data are lost"))
+
+    recipes.run(dataclasses.replace(rec, func=func), out_root=tmp_path, quiet=True, options=TINY)
+    cmp = report.compare_verdicts(report.check_results(results)[0], tmp_path)
+    assert cmp["transitions"] == {"undecided -> agree": 1}
+    [c] = cmp["changed"]
+    assert (c["claim"], c["before"], c["after"]) == ("A beats B", "undecided", "agree")
+    assert cmp["only_here"] == 1 and cmp["only_there"] == 0  # "a rate" is in one set only
+    r = CliRunner().invoke(main, ["report", "--out", str(results), "--compare", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    assert "1 changed verdict; undecided -> agree: 1" in r.output
+    assert "## Verdicts against" in (results / "REPORT.md").read_text()

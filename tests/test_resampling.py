@@ -158,3 +158,15 @@ def test_residual_with_subnormal_total_weight(scheme):
     counts = np.bincount(a, minlength=4)
     # N w = (0.5, 1.5, 0, 2): floors (0, 1, 0, 2), one remainder particle to index 0 or 1
     assert counts.sum() == 4 and counts[2] == 0 and counts[3] == 2 and counts[0] + counts[1] == 2
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 64, 257])
+def test_numba_decreasing_order_is_the_stable_argsort(n):
+    # The written-out merge sort behind residual_deterministic must equal NumPy's stable argsort of
+    # -v, ties (frequent here: values on a coarse grid, and +-0.0) by the lower index. Mutation
+    # caught: `>=` instead of `>` in the merge (unstable), or a merge that drops the tail of a run.
+    rng = np.random.default_rng(n)
+    v = np.round(rng.random(n) * 4) / 4
+    v[::5] = -0.0
+    got = numba_resampling._decreasing_order(v)
+    assert np.array_equal(got, np.argsort(-v, kind="mergesort"))

@@ -42,3 +42,10 @@ def test_proportion_wilson_interval_and_undecided_when_too_few_runs():
 def test_holds_and_not_reproducible():
     assert v.holds(True, "t").verdict == v.AGREE and v.holds(False, "t").verdict == v.DISAGREE
     assert v.not_reproducible("data lost").verdict == v.NOT_REPRODUCIBLE
+
+
+def test_no_dependence_rule():
+    assert v.no_dependence(np.zeros(10), 0.2, "d").verdict == v.AGREE          # interval [0, 0]
+    assert v.no_dependence(np.ones(10) * 0.5 + np.linspace(-0.01, 0.01, 10), 0.2, "d").verdict == v.DISAGREE
+    wide = np.array([1.0, -1.0, 0.0, 1.0, -1.0, 0.0])                       # contains 0, wider than 0.2
+    assert v.no_dependence(wide, 0.2, "d").verdict == v.UNDECIDED

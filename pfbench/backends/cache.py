@@ -28,6 +28,14 @@ the wrong code.
 
 :func:`install` runs when ``pfbench`` is imported, before any pfbench module defines a cached
 function.
+
+Compile time. Every array assignment ``a[...] = b`` that numba compiles carries a shape check whose
+CPU error path formats both shapes into the message (f-strings, ``str.join``, ``repr``), and numba
+compiles that unicode code once per process and per pair of ranks: 2.5-5 s of a cold kernel
+compile, for a branch that only runs on a bug. :func:`install` therefore points numba's CPU
+overload of that error path at numba's own target-neutral one, which raises the same
+``ValueError`` with a constant message ("cannot assign slice from input of different size"). The
+compiled arithmetic, and so every result, is unchanged.
 """
 from __future__ import annotations
 
@@ -296,7 +304,8 @@ _INSTALLED = False
 
 
 def install() -> None:
-    """Put the package-keyed locator first in numba's list (idempotent)."""
+    """Put the package-keyed locator first in numba's list and use the constant-message shape
+    error (see the module docstring) (idempotent)."""
     global _INSTALLED
     if _INSTALLED:
         return
@@ -306,7 +315,30 @@ def install() -> None:
     classes = impl._locator_classes
     if not any(getattr(c, "__name__", "") == "PackageKeyedLocator" for c in classes):
         classes.insert(0, _locator_class())
+    constant_shape_error()
     _INSTALLED = True
+
+
+def constant_shape_error() -> bool:
+    """Make numba's CPU target raise array-assignment shape mismatches with the constant message
+    of its generic target instead of formatting the shapes (which costs seconds of compile time
+    per process, see the module docstring). Returns whether the CPU overload now uses it; False
+    (nothing changed) when this numba version lays the overload out differently."""
+    try:
+        from numba.core.typing.templates import builtin_registry
+        from numba.np import arrayobj
+    except ImportError:  # pragma: no cover - another numba layout
+        return False
+    key = getattr(arrayobj, "raise_with_shape_context", None)
+    generic = getattr(arrayobj, "ol_raise_with_shape_context_generic", None)
+    if key is None or generic is None:  # pragma: no cover - another numba layout
+        return False
+    done = False
+    for template in builtin_registry.functions:
+        if getattr(template, "key", None) is key and getattr(template, "metadata", {}).get("target") == "CPU":
+            template._overload_func = staticmethod(generic)
+            done = True
+    return done
 
 
 def njit(*args, **options):

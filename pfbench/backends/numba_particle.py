@@ -4,22 +4,69 @@ This is the compiled twin of :func:`pfbench.backends.numpy_backend.run_group`: t
 same random draws in the same order, the same floating-point operations for everything that feeds
 back into the filter. It calls the model through three module globals, ``_initial``,
 ``_transition`` and ``_log_likelihood``. As a file it is importable (they are placeholders here);
-:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of it per model class with the
-model's compiled functions bound to those names at the end, so numba can cache the whole kernel,
-model inlined, on disk.
+:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of it per (model class,
+resampling scheme) with the model's compiled functions bound to those names and the scheme bound to
+``_resample``/``_SCHEME`` at the end, so numba caches the whole kernel, model inlined, on disk.
+
+Fused passes (per step and filter; each particle is touched three times)
+-------------------------------------------------------------------------
+A. draw noise + propagate + log-likelihood + a = lw + ll + running max, in tiles of ``_TILE``
+   particles (the model's vectorised ``transition``/``log_likelihood`` run on a tile view, so a
+   model is still written once; tile-by-tile draws are the numbers one big draw gives);
+B. w = exp(a - max) + running sum (the cdf) + weighted sums for the mean, the shifted second moment
+   (shift: the filter's particle 0, so the one-pass variance does not cancel) and sum w^2 (N_eff);
+C. resampling: systematic and stratified as a merge that writes the resampled particles straight
+   into the second particle buffer (the buffers swap; no index array, no copy back); multinomial and
+   residual draw indices (``_resample``) and gather.
+
+Stream blocks and threads
+-------------------------
+Particles are split into stream blocks ``[bounds[b], bounds[b + 1])`` of equal size
+(:func:`pfbench.backends.numpy_backend.block_bounds`: one block up to N_p = ``BLOCK`` = 8192, else
+a multiple of 16 blocks, so 2, 4, 8 or 16 threads get equal shares). With one block everything is
+drawn from the filter's own generator in the single-stream order (bit-identical to the unblocked
+kernel). With B > 1 blocks, block b draws its
+transition noise (and stratified uniforms for its output positions) from its own generator
+``brngs[b]``; systematic's one uniform, multinomial/residual draws and the initial particles come
+from the filter's generator. Per-block partial results (max, weight sum, moments) are reduced in
+block order by one thread, and the cdf of block b is ``offset_b + running sum within b``, so the
+numbers depend on (seed, N_p, block layout) only. :func:`run_group` is the serial compilation,
+:func:`run_group_parallel` the same Python function compiled with ``parallel=True`` (its block
+loops are ``prange``): bit-identical results for any thread count.
+
+float32
+-------
+With float32 particles the noise is drawn as float32 (``standard_normal(..., dtype=float32)``, the
+float32 ziggurat) and the particle buffers are float32; the model functions see float64 tiles
+(the stored, rounded states) and their results are rounded to float32 when stored; weights,
+log-likelihood sums and moments stay float64. Why not float32 arithmetic: the models are written
+with Python float literals (``0.5 * x``) and float64 parameters, which numba types as float64
+whatever the array dtype (measured: ``float32 array * 0.5`` is a float64 array in numba, float32
+in NumPy >= 2), so a float32 model evaluation would differ between the backends and gain nothing
+inside numba; computing in float64 and storing float32 keeps the backends in agreement. The gain
+is the cheaper float32 normal draw and half the particle memory traffic, against two float32 <-> float64 tile conversions; measured on a
+loaded 2-core machine (Ob1 bootstrap, 1 thread, medians of 5): N_p = 10^3: 50.7 vs 49.0 ns per
+particle-step, N_p = 10^5: 69 vs 60 ns (float32 vs float64), i.e. no gain: the step is bound by
+the scalar exp, the normal draw, the model's division and the merge's branches, not by memory
+(N_p = 10^5 float64 particles are 0.8 MB, cache-resident), so halving storage cannot pay until
+the models are written dtype-generic (float32 literals) and the exp is vectorised.
 """
+import numba as _numba
 import numpy as _np
+from numba.extending import overload as _overload
 
 from pfbench.backends.cache import njit as _njit
-from pfbench.backends.numba_resampling import resample_into as _resample_into
-from pfbench.backends.numba_weights import moments as _moments
-from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
-from pfbench.backends.numba_weights import weigh as _weigh
+from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.filters.methods import Method as _Method
 
 _ASIR = int(_Method.ASIR)
 _BOOTSTRAP = int(_Method.BOOTSTRAP)
 _SIR = int(_Method.SIR)
+#: particles per tile of the fused pass A (the tile's noise, new states and likelihoods stay in L1/L2)
+_TILE = 512
+#: resampling scheme code bound by kernel_module (-1: chosen at run time through ``_resample``)
+_SCHEME = -1
+_prange = _numba.prange
 
 
 def _initial(rng, n, p):  # pragma: no cover - bound per model in the generated module
@@ -34,78 +81,330 @@ def _log_likelihood(y, x, u, t, p):  # pragma: no cover - bound per model
     raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
 
 
-@_njit(nogil=True)
-def run_group(p, rng, y, u, x, n_noise, method, scheme, ess_threshold, est, var, ess, inc, resampled,
-              degen, hist_x, hist_w):
-    """Run a group of G independent filters over all steps (one random stream, documented order).
+def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by kernel_module
+    raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
 
-    x: (G, n, n_x) particle buffer (its dtype is the particle dtype); outputs (G, M, ...).
-    hist_x (G, M, n, n_x), hist_w (G, M, n): the weighted particles of every step (before
-    resampling) when their second dimension is M; pass (G, 0, ...) arrays to store nothing.
-    method: a :class:`~pfbench.filters.methods.Method` code of the particle family (MultiPDF runs
-    bootstrap sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold:
-    a particle count.
+
+def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the overload below
+    return rng.standard_normal((k, n_noise), dtype=like.dtype)
+
+
+@_overload(_normals)
+def _normals_impl(rng, k, n_noise, like):
+    """(k, n_noise) standard normals in the particle dtype (float32 draws the float32 ziggurat)."""
+    if like.dtype == _numba.types.float32:
+        return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float32)
+    return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float64)
+
+
+def _as64(a):  # pragma: no cover - compiled through the overload below
+    return a.astype(_np.float64)
+
+
+@_overload(_as64)
+def _as64_impl(a):
+    """``a`` as float64 (no copy when it already is): the models compute in float64."""
+    if a.dtype == _numba.types.float64:
+        return lambda a: a
+    return lambda a: a.astype(_np.float64)
+
+
+def _stored(xn, stored):  # pragma: no cover - compiled through the overload below
+    return stored.astype(_np.float64)
+
+
+@_overload(_stored)
+def _stored_impl(xn, stored):
+    """The states as stored (float32 particles: rounded), in float64, for the log-likelihood."""
+    if stored.dtype == _numba.types.float64:
+        return lambda xn, stored: xn
+    return lambda xn, stored: stored.astype(_np.float64)
+
+
+@_njit(nogil=True)
+def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam, asir, lam_out, la):
+    """Pass A on particles [i0, i1): draw + propagate + log-likelihood + a = lw + ll; returns max a.
+
+    ``first`` (ASIR first stage): zero noise, the states are not stored and the cleaned
+    log-likelihoods go to ``lam_out``; ``asir`` (second stage): ll - lam. ``flat``: every lw is
+    -log n (after resampling), so it is not read.
+    """
+    m = -_np.inf
+    n_x = xs.shape[1]
+    for s in range(i0, i1, _TILE):
+        e = min(s + _TILE, i1)
+        k = e - s
+        if first:
+            noise = _np.zeros((k, n_noise))
+        else:
+            noise = _as64(_normals(brng, k, n_noise, xs))
+        xn = _transition(_as64(xs[s:e]), ut, t, noise, p)
+        if not first:
+            for i in range(k):
+                for c in range(n_x):
+                    xs[s + i, c] = xn[i, c]
+            xn = _stored(xn, xs[s:e])
+        ll = _log_likelihood(yt, xn, ut, t, p)
+        for i in range(k):
+            j = s + i
+            v = _np.float64(ll[i])
+            if not (v == v) or v == _np.inf:
+                v = -_np.inf
+            elif asir:
+                v = v - lam[j]
+                if not (v == v) or v == _np.inf:
+                    v = -_np.inf
+            if first:
+                lam_out[j] = v
+            a = mlogn + v if flat else lw[j] + v
+            la[j] = a
+            if a > m:
+                m = a
+    return m
+
+
+@_njit(nogil=True)
+def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
+    """Pass B on [i0, i1): w = exp(a - m), block running sum (cdf), and, when ``mom``, the block's
+    sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff)."""
+    n_x = xs.shape[1]
+    acc = 0.0
+    s2 = 0.0
+    for c in range(n_x):
+        bsx[b, c] = 0.0
+        bsxx[b, c] = 0.0
+    for i in range(i0, i1):
+        w = _np.exp(la[i] - m)
+        wu[i] = w
+        acc += w
+        cdf[i] = acc
+        if mom:
+            s2 += w * w
+            for c in range(n_x):
+                xc = _np.float64(xs[i, c])
+                bsx[b, c] += w * xc
+                d = xc - _np.float64(xs[0, c])
+                bsxx[b, c] += w * d * d
+    bsum[b] = acc
+    bs2[b] = s2
+
+
+@_njit(nogil=True)
+def _first_above(cdf, n, pos):
+    """Smallest j with cdf[j] > pos (n - 1 if none): where a sequential merge is at ``pos``."""
+    lo = 0
+    hi = n - 1
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if cdf[mid] > pos:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@_njit(nogil=True)
+def _merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos):
+    """Systematic/stratified resampling of output positions [i0, i1), writing the selected particles
+    (and ``lam``) into ``dst`` ([Thesis] Alg. 4; [Embedded] Alg. 1 step 5).
+
+    Output i takes ancestor a(i) = the smallest j with cdf[j] > position_i (n - 1 if none), where
+    position_i = (u_i + i) / n * total (u_i = u, or ``ub[i - i0]`` when stratified): the operations
+    of :mod:`pfbench.resampling`. A sequential merge walks j with two data-dependent branches per
+    particle, which mispredict when the weights are uneven (measured on Ob1: 10 ns per particle of
+    a 28 ns step). Here the walk is branch-free: positions increase with i, so the outputs whose
+    ancestor is <= j are the prefix [0, K_j) with K_j = #{i : position_i < cdf[j]}; K_j is
+    estimated from cdf[j] and corrected by exact comparisons with the positions (normally none),
+    output K_j is marked as starting ancestor j + 1 (a later, zero-weight j overwrites the same
+    mark), and a running maximum over the marks gives a(i). Same ancestors as the merge for any
+    weights (tested against it). ``anc`` and ``pos`` [i0, i1) are scratch.
+    """
+    n_x = src.shape[1]
+    total = cdf[n - 1]
+    for i in range(i0, i1):
+        ui = ub[i - i0] if strat else u
+        pos[i] = (ui + i) / n * total
+    j0 = _first_above(cdf, n, pos[i0])
+    j1 = _first_above(cdf, n, pos[i1 - 1])
+    for i in range(i0, i1):
+        anc[i] = j0
+    scale = n / total
+    shift = 0.5 if strat else u
+    for j in range(j0, j1):  # here i0 < K_j <= i1 - 1
+        c = cdf[j]
+        k = min(max(int(_np.ceil(c * scale - shift)), i0 + 1), i1 - 1)
+        while k > i0 + 1 and pos[k - 1] >= c:
+            k -= 1
+        while k < i1 - 1 and pos[k] < c:
+            k += 1
+        anc[k] = j + 1
+    a = j0
+    for i in range(i0, i1):
+        a = max(a, anc[i])
+        for c in range(n_x):
+            dst[i, c] = src[a, c]
+        if with_lam:
+            lam_dst[i] = lam_src[a]
+
+
+@_njit(nogil=True)
+def _gather(idx, i0, i1, src, dst, lam_src, lam_dst, with_lam):
+    n_x = src.shape[1]
+    for i in range(i0, i1):
+        j = idx[i]
+        for c in range(n_x):
+            dst[i, c] = src[j, c]
+        if with_lam:
+            lam_dst[i] = lam_src[j]
+
+
+def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,
+               resampled, degen, hist_x, hist_w):
+    """Run a group of G independent filters over all steps (random streams in documented order).
+
+    x: (G, n, n_x) particle buffer (its dtype is the particle dtype; holds the final particles on
+    return); outputs (G, M, ...). rng: the group's generator; brngs: a list of the B
+    block generators (``[rng]`` when B = 1); bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w
+    (G, M, n): the weighted particles of every step (before resampling) when their second dimension
+    is M; pass (G, 0, ...) arrays to store nothing. method: a
+    :class:`~pfbench.filters.methods.Method` code of the particle family (MultiPDF runs bootstrap
+    sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
+    count.
     """
     G = x.shape[0]
     n = x.shape[1]
     n_x = x.shape[2]
     M = y.shape[0]
+    nb = bounds.shape[0] - 1
     logn = _np.log(n)
-    lw = _np.full((G, n), -logn)
+    mlogn = -logn
+    lw = _np.full((G, n), mlogn)
+    flat = _np.ones(G, _np.bool_)
+    xs = _np.empty((2, G, n, n_x), x.dtype)
+    cur = _np.zeros(G, _np.int64)
     wu = _np.empty(n)
     cdf = _np.empty(n)
-    idx = _np.empty(n, _np.int64)
-    buf = _np.empty((n, n_x), x.dtype)
+    la = _np.empty(n)
     lam = _np.zeros(n)
+    lam_all = _np.empty(n)
+    idx = _np.empty(n, _np.int64)
+    bmax = _np.empty(nb)
+    bsum = _np.empty(nb)
+    bs2 = _np.empty(nb)
+    bsx = _np.empty((nb, n_x))
+    bsxx = _np.empty((nb, n_x))
+    off = _np.zeros(nb)
+    ub = _np.empty(1)
     for g in range(G):
-        x[g] = _initial(rng, n, p)
+        x0 = _initial(rng, n, p)
+        for i in range(n):
+            for c in range(n_x):
+                xs[0, g, i, c] = x0[i, c]
     for t in range(M):
         yt = y[t]
         ut = u[t]
         for g in range(G):
-            xg = x[g]
             lwg = lw[g]
             first = 0.0
-            if method == _ASIR:  # first stage, [Thesis] Alg. 6
-                mu = _transition(xg, ut, t, _np.zeros((n, n_noise)), p)
-                lam_all = _log_likelihood(yt, mu, ut, t, p).astype(_np.float64)
-                m1, tot1, deg1 = _weigh(lwg, lam_all, wu, cdf)
-                first = m1 + _np.log(tot1)
-                if deg1:
+            for stage in range(2 if method == _ASIR else 1):
+                fs = method == _ASIR and stage == 0  # first stage, [Thesis] Alg. 6
+                src = xs[cur[g], g]
+                for b in _prange(nb):
+                    bmax[b] = _pass_a(p, brngs[b], yt, ut, t, src, bounds[b], bounds[b + 1], n_noise,
+                                      lwg, flat[g], mlogn, fs, lam, method == _ASIR and not fs, lam_all, la)
+                m = -_np.inf
+                for b in range(nb):
+                    if bmax[b] > m:
+                        m = bmax[b]
+                deg = not (m > -_np.inf)
+                if deg:  # every likelihood zero: keep the previous weights
                     for i in range(n):
-                        lam_all[i] = 0.0
-                _resample_into(scheme, wu, cdf, rng, idx)
-                for i in range(n):
-                    for a in range(n_x):
-                        buf[i, a] = xg[idx[i], a]
-                    lam[i] = lam_all[idx[i]]
-                xg[:] = buf
-                lwg[:] = -logn
-            noise = rng.standard_normal((n, n_noise))
-            xg[:] = _transition(xg, ut, t, noise, p)
-            ll = _log_likelihood(yt, xg, ut, t, p).astype(_np.float64)
-            if method == _ASIR:
-                for i in range(n):
-                    v = ll[i]
-                    ll[i] = v - lam[i] if v == v and v != _np.inf else -_np.inf
-            m, total, deg = _weigh(lwg, ll, wu, cdf)
-            if hist_x.shape[1] > 0:
-                for i in range(n):
-                    hist_w[g, t, i] = wu[i] / total
-                    for a in range(n_x):
-                        hist_x[g, t, i, a] = xg[i, a]
-            degen[g, t] = deg
-            inc[g, t] = (-_np.inf if deg else m + _np.log(total)) + first
-            e = _moments(xg, wu, total, est[g, t], var[g, t])
-            ess[g, t] = e
-            do = method == _BOOTSTRAP or (method == _SIR and e < ess_threshold)
-            if do:
-                _resample_into(scheme, wu, cdf, rng, idx)
-                for i in range(n):
-                    for a in range(n_x):
-                        buf[i, a] = xg[idx[i], a]
-                xg[:] = buf
-                lwg[:] = -logn
-            else:
-                _normalised_log_weights(wu, total, lwg)
-            resampled[g, t] = do
+                        la[i] = mlogn if flat[g] else lwg[i]
+                        if la[i] > m:
+                            m = la[i]
+                for b in _prange(nb):
+                    _pass_b(la, m, wu, cdf, src, bounds[b], bounds[b + 1], not fs, b, bsum, bs2, bsx,
+                            bsxx)
+                total = 0.0
+                for b in range(nb):
+                    off[b] = total
+                    total += bsum[b]
+                if nb > 1:
+                    for b in _prange(nb):
+                        for i in range(bounds[b], bounds[b + 1]):
+                            cdf[i] += off[b]
+                if fs:
+                    first = m + _np.log(total)
+                    if deg:
+                        for i in range(n):
+                            lam_all[i] = 0.0
+                    do = True
+                else:
+                    if hist_x.shape[1] > 0:
+                        for i in range(n):
+                            hist_w[g, t, i] = wu[i] / total
+                            for c in range(n_x):
+                                hist_x[g, t, i, c] = src[i, c]
+                    degen[g, t] = deg
+                    inc[g, t] = (-_np.inf if deg else m + _np.log(total)) + first
+                    s2 = 0.0
+                    for b in range(nb):
+                        s2 += bs2[b]
+                    for c in range(n_x):
+                        sx = 0.0
+                        sxx = 0.0
+                        for b in range(nb):
+                            sx += bsx[b, c]
+                            sxx += bsxx[b, c]
+                        mean = sx / total
+                        d = mean - _np.float64(src[0, c])
+                        est[g, t, c] = mean
+                        var[g, t, c] = max(sxx / total - d * d, 0.0)
+                    e = total * total / s2
+                    ess[g, t] = e
+                    do = method == _BOOTSTRAP or (method == _SIR and e < ess_threshold)
+                    resampled[g, t] = do
+                if do:
+                    dst = xs[1 - cur[g], g]
+                    if _SCHEME == 0 or _SCHEME == 1 or (_SCHEME == -1 and scheme <= 1):  # pruned at compile time
+                        strat = scheme == 1
+                        uu = 0.0 if strat else rng.random()
+                        for b in _prange(nb):
+                            i0 = bounds[b]
+                            i1 = bounds[b + 1]
+                            ubb = brngs[b].random(i1 - i0) if strat else ub
+                            _merge_gather(cdf, n, uu, ubb, strat, i0, i1, src, dst, lam_all, lam, fs, idx,
+                                          la)  # la (the log-weights) is free until the next pass A
+                    else:
+                        if nb > 1:  # the index schemes see the sequential running sum
+                            _cumsum_into(wu, cdf)
+                        _resample(scheme, wu, cdf, rng, idx)
+                        for b in _prange(nb):
+                            _gather(idx, bounds[b], bounds[b + 1], src, dst, lam_all, lam, fs)
+                    cur[g] = 1 - cur[g]
+                    flat[g] = True
+                elif not fs:
+                    lt = _np.log(total)
+                    for i in range(n):
+                        lwg[i] = _np.log(wu[i]) - lt if wu[i] > 0.0 else -_np.inf
+                    flat[g] = False
+    for g in range(G):
+        for i in range(n):
+            for c in range(n_x):
+                x[g, i, c] = xs[cur[g], g, i, c]
+
+
+def _named(func, name):
+    """A copy of ``func`` under another name (its own dispatcher and cache entry)."""
+    import types
+
+    f = types.FunctionType(func.__code__, func.__globals__, name, func.__defaults__, func.__closure__)
+    f.__qualname__ = name
+    f.__doc__ = func.__doc__
+    return f
+
+
+#: the serial compilation (MultiPDF thread pools, small N_p, ``n_threads=1``)
+run_group = _njit(nogil=True)(_named(_run_group, "run_group"))
+#: the same function with its block loops over all numba threads (compiled on first use)
+run_group_parallel = _njit(nogil=True, parallel=True)(_named(_run_group, "run_group_parallel"))

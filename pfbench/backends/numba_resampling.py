@@ -2,7 +2,8 @@
 
 Same contract, same random draws and the same floating-point operations as the NumPy
 reference, so under the same generator state both return identical indices (tested).
-The engine calls the ``*_into`` kernels with the running sum of the unnormalised weights.
+The filter kernels call one scheme kernel (:data:`KERNELS`) with the running sum of the
+unnormalised weights.
 """
 from __future__ import annotations
 
@@ -11,10 +12,6 @@ from .cache import njit
 
 from ..resampling import Scheme
 
-_STRATIFIED = int(Scheme.STRATIFIED)
-_MULTINOMIAL = int(Scheme.MULTINOMIAL)
-_SYSTEMATIC = int(Scheme.SYSTEMATIC)
-_RESIDUAL_DETERMINISTIC = int(Scheme.RESIDUAL_DETERMINISTIC)
 
 
 @njit(nogil=True)
@@ -26,7 +23,7 @@ def cumsum_into(w, cdf):
     return acc
 
 
-@njit(nogil=True)
+@njit(nogil=True, inline="always")
 def _merge(cdf, n, start_u, stride_u, idx):
     """idx[i] = smallest j with cdf[j] > (u_i + i) / n * total, positions increasing."""
     total = cdf[n - 1]
@@ -40,37 +37,13 @@ def _merge(cdf, n, start_u, stride_u, idx):
         idx[i] = j
 
 
-@njit(nogil=True)
-def systematic_into(cdf, rng, idx):
-    u = np.empty(1)
-    u[0] = rng.random()
-    _merge(cdf, cdf.shape[0], u, 0, idx)
-
-
-@njit(nogil=True)
-def stratified_into(cdf, rng, idx):
-    n = cdf.shape[0]
-    u = rng.random(n)
-    _merge(cdf, n, u, 1, idx)
-
-
-@njit(nogil=True)
+@njit(nogil=True, inline="always")
 def _search_right(cdf, n, value):
     j = np.searchsorted(cdf, value, side="right")
     return j if j < n else n - 1
 
 
-@njit(nogil=True)
-def multinomial_into(cdf, rng, idx):
-    n = cdf.shape[0]
-    total = cdf[n - 1]
-    u = rng.random(n)
-    for i in range(n):
-        idx[i] = _search_right(cdf, n, u[i] * total)
-    idx.sort()
-
-
-@njit(nogil=True)
+@njit(nogil=True, inline="always")
 def _residual_counts(w, total, counts, res):
     n = w.shape[0]
     s = 0
@@ -83,7 +56,7 @@ def _residual_counts(w, total, counts, res):
     return n - s
 
 
-@njit(nogil=True)
+@njit(nogil=True, inline="always")
 def _expand(counts, idx):
     k = 0
     for i in range(counts.shape[0]):
@@ -92,7 +65,42 @@ def _expand(counts, idx):
             k += 1
 
 
-@njit(nogil=True)
+@njit(nogil=True, inline="always")
+def _decreasing_order(v):
+    """Indices that sort ``v`` (no NaN) in decreasing order, ties by the lower index: the same as
+    ``np.argsort(-v, kind="mergesort")`` (a stable bottom-up merge sort, written out because
+    numba's generic argsort costs seconds to compile)."""
+    n = v.shape[0]
+    a = np.arange(n)
+    b = np.empty(n, np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid = min(lo + width, n)
+            hi = min(lo + 2 * width, n)
+            i, j, k = lo, mid, lo
+            while i < mid and j < hi:
+                if v[a[j]] > v[a[i]]:  # only a strictly larger right element overtakes: stable
+                    b[k] = a[j]
+                    j += 1
+                else:
+                    b[k] = a[i]
+                    i += 1
+                k += 1
+            while i < mid:
+                b[k] = a[i]
+                i += 1
+                k += 1
+            while j < hi:
+                b[k] = a[j]
+                j += 1
+                k += 1
+        a, b = b, a
+        width *= 2
+    return a
+
+
+@njit(nogil=True, inline="always")
 def residual_into(w, total, rng, idx, deterministic):
     n = w.shape[0]
     counts = np.empty(n, np.int64)
@@ -100,7 +108,7 @@ def residual_into(w, total, rng, idx, deterministic):
     r = _residual_counts(w, total, counts, res)
     if r > 0:
         if deterministic:
-            order = np.argsort(-res, kind="mergesort")
+            order = _decreasing_order(res)
             for m in range(r):
                 counts[order[m]] += 1
         else:
@@ -112,17 +120,85 @@ def residual_into(w, total, rng, idx, deterministic):
     _expand(counts, idx)
 
 
-@njit(nogil=True)
-def resample_into(code, w, cdf, rng, idx):
-    """Dispatch on the :class:`~pfbench.resampling.Scheme` code; ``cdf`` is the running sum of ``w``."""
-    if code == _SYSTEMATIC:
-        systematic_into(cdf, rng, idx)
-    elif code == _STRATIFIED:
-        stratified_into(cdf, rng, idx)
-    elif code == _MULTINOMIAL:
-        multinomial_into(cdf, rng, idx)
+# One kernel per scheme with the common signature ``(code, w, cdf, rng, idx)``: ``cdf`` is the
+# running sum of the unnormalised weights ``w``, ``code`` the scheme's :class:`Scheme` code (read by
+# :func:`any_scheme` only). A filter kernel is compiled with the one its call uses
+# (:func:`pfbench.backends.numba_backend.kernel_module` binds it to the kernel's ``_resample``), so a
+# run never compiles the schemes it does not use; ``any_scheme`` serves callers that pick the
+# scheme at run time. On a cold cache every compiled function costs a fixed ~0.2-0.4 s and its
+# caller optimises its machine code once more, so the scheme kernels and their loops are inlined
+# into the caller (``inline="always"``: one compilation of the whole filter kernel) and call the
+# shared loops (``_merge``, ``residual_into``) directly, without wrappers.
+@njit(nogil=True, inline="always")
+def systematic(code, w, cdf, rng, idx):
+    """[Thesis] Alg. 4 / [Embedded] Alg. 1 step 5: one uniform, N evenly spaced pointers."""
+    u = np.empty(1)
+    u[0] = rng.random()
+    _merge(cdf, cdf.shape[0], u, 0, idx)
+
+
+@njit(nogil=True, inline="always")
+def stratified(code, w, cdf, rng, idx):
+    """One uniform per stratum ((u_i + i) / N)."""
+    n = cdf.shape[0]
+    u = rng.random(n)
+    _merge(cdf, n, u, 1, idx)
+
+
+@njit(nogil=True, inline="always")
+def multinomial(code, w, cdf, rng, idx):
+    """N independent draws from the weights, returned sorted (counted per particle and expanded:
+    the same indices as sorting them, without compiling a sort)."""
+    n = cdf.shape[0]
+    total = cdf[n - 1]
+    u = rng.random(n)
+    counts = np.zeros(n, np.int64)
+    for i in range(n):
+        counts[_search_right(cdf, n, u[i] * total)] += 1
+    _expand(counts, idx)
+
+
+@njit(nogil=True, inline="always")
+def residual(code, w, cdf, rng, idx):
+    """Residual resampling, remainder drawn multinomially."""
+    residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, False)
+
+
+@njit(nogil=True, inline="always")
+def residual_deterministic(code, w, cdf, rng, idx):
+    """Residual resampling, remainder given to the largest residuals."""
+    residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, True)
+
+
+@njit(nogil=True, inline="always")
+def any_scheme(code, w, cdf, rng, idx):
+    """Dispatch on the :class:`~pfbench.resampling.Scheme` code (compiles every scheme)."""
+    if code == 0:
+        systematic(code, w, cdf, rng, idx)
+    elif code == 1:
+        stratified(code, w, cdf, rng, idx)
+    elif code == 2:
+        multinomial(code, w, cdf, rng, idx)
     else:
-        residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == _RESIDUAL_DETERMINISTIC)
+        residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == 4)
+
+
+#: :class:`~pfbench.resampling.Scheme` -> name of its kernel in this module (None: ``any_scheme``)
+KERNELS = {None: "any_scheme", Scheme.SYSTEMATIC: "systematic", Scheme.STRATIFIED: "stratified",
+           Scheme.MULTINOMIAL: "multinomial", Scheme.RESIDUAL: "residual",
+           Scheme.RESIDUAL_DETERMINISTIC: "residual_deterministic"}
+
+
+def kernel_name(scheme) -> str:
+    """Name of the kernel of a scheme (a :class:`Scheme`, its name or code; None: any scheme)."""
+    if scheme is None:
+        return KERNELS[None]
+    return KERNELS[Scheme(scheme) if isinstance(scheme, int) else Scheme.parse(scheme)]
+
+
+def kernel(scheme):
+    """The compiled kernel ``(code, w, cdf, rng, idx)`` of a scheme (None: :func:`any_scheme`)."""
+    return globals()[kernel_name(scheme)]
 
 
 def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:
@@ -135,7 +211,7 @@ def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:
     cdf = np.empty_like(w)
     cumsum_into(w, cdf)
     idx = np.empty(w.shape[0], np.int64)
-    resample_into(code, w, cdf, rng, idx)
+    kernel(code)(code, w, cdf, rng, idx)
     return idx
 
 

@@ -6,8 +6,17 @@ all steps, drawing every random number from one ``numpy.random.Generator`` in th
 1. initial particles of filter 0, 1, ..., G-1 (the model's ``initial``);
 2. per step t, per filter g in order:
    a. ASIR only: the first-stage resampling draws;
-   b. transition noise, ``rng.standard_normal((n, n_noise))``;
+   b. transition noise, ``rng.standard_normal((n, n_noise), dtype=particle dtype)``;
    c. the resampling draws, if the filter resamples at this step.
+
+Stream blocks: particles are split into :func:`n_blocks` blocks of equal size (:func:`block_bounds`):
+one up to N_p = :data:`BLOCK`, else a multiple of 16 blocks of at most BLOCK particles, so that
+2, 4, 8 or 16 threads get equal work. With one block the order above is all there is. With B > 1 blocks, the transition noise of block b (and the
+stratified uniforms of output block b) come from block b's own generator (:func:`block_streams`),
+drawn block after block; the initial particles, systematic's one uniform and the multinomial and
+residual draws come from the filter's generator. Weight running sums restart per block and add
+the block's offset, and block totals are added in block order, so the numbers depend on the seed and
+N_p, never on how many threads run the numba kernel.
 
 The numba backend (:mod:`pfbench.backends.numba_particle`) follows the same order with the same
 operations, which is what makes the two backends agree under common random numbers.
@@ -36,14 +45,16 @@ def _clean(ll) -> np.ndarray:
     return ll
 
 
-def weigh(lw: np.ndarray, ll: np.ndarray):
+def weigh(lw: np.ndarray, ll: np.ndarray, blocks=None):
     """Combine normalised log-weights with log-likelihoods, log-sum-exp style (the NumPy twin of
     :func:`pfbench.backends.numba_weights.weigh`).
 
     Returns (wu, cdf, m, total, degenerate): unnormalised weights exp(a - max a), their
     running sum, the max, the sum, and whether every likelihood was zero (then the previous
     weights are kept). The normalised log-weights are only needed when the filter does not
-    resample (:func:`normalised_log_weights`), so they are not computed here.
+    resample (:func:`normalised_log_weights`), so they are not computed here. ``blocks`` (slices):
+    the running sum restarts per stream block and adds the block's offset (the particle kernel's
+    order); None: one block.
     """
     a = lw + ll
     m = a.max()
@@ -51,9 +62,8 @@ def weigh(lw: np.ndarray, ll: np.ndarray):
     if degenerate:
         a = lw.copy()
         m = a.max()
-    wu = np.exp(a - m)
-    cdf = np.cumsum(wu)
-    return wu, cdf, m, cdf[-1], degenerate
+    wu, cdf, total = _block_weights(a, m, blocks or [slice(0, a.size)])
+    return wu, cdf, m, total, degenerate
 
 
 def normalised_log_weights(wu: np.ndarray, total: float) -> np.ndarray:
@@ -62,15 +72,90 @@ def normalised_log_weights(wu: np.ndarray, total: float) -> np.ndarray:
         return np.log(wu) - np.log(total)
 
 
+#: largest stream block (both backends): up to this N_p a filter is one block, the single-stream filter
+BLOCK = 8192
+#: above BLOCK the number of blocks is a multiple of this, so 1, 2, 4, 8 or 16 threads get equal shares
+BALANCE = 16
+
+
+def n_blocks(n: int, block: int = BLOCK) -> int:
+    """Number of stream blocks of a filter of ``n`` particles: 1 up to ``block``, else the smallest
+    multiple of :data:`BALANCE` (at most ``n``) whose blocks hold at most ``block`` particles."""
+    if n <= block:
+        return 1
+    return min(n, BALANCE * -(-n // (BALANCE * block)))
+
+
+def block_bounds(n: int, block: int = BLOCK) -> np.ndarray:
+    """Start of every stream block, then n: (B + 1,) int64 with B = :func:`n_blocks`; block b is
+    [(b n) // B, ((b + 1) n) // B), so block sizes differ by at most one particle."""
+    nb = n_blocks(n, block)
+    return (np.arange(nb + 1, dtype=np.int64) * n) // nb
+
+
+def block_streams(rng, seed_seq, n: int, block: int = BLOCK) -> list:
+    """The stream-block generators of a filter of ``n`` particles (see the module docstring).
+
+    One block: ``[rng]`` (the filter's own stream). B > 1 blocks: block b draws from
+    ``default_rng(SeedSequence(entropy, spawn_key=seed_seq.spawn_key + (0x5EB10C, b)))``, derived from
+    the filter's SeedSequence without spawning from (mutating) it. Shared by both backends.
+    """
+    nb = n_blocks(n, block)
+    if nb == 1:
+        return [rng]
+    if seed_seq is None:
+        raise ValueError("a multi-block filter needs its SeedSequence")
+    return [np.random.default_rng(np.random.SeedSequence(seed_seq.entropy, spawn_key=tuple(seed_seq.spawn_key)
+                                                         + (0x5EB10C, b), pool_size=seed_seq.pool_size))
+            for b in range(nb)]
+
+
+def _blocks(n: int, block: int):
+    bounds = block_bounds(n, block)
+    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _block_weights(a: np.ndarray, m: float, blocks):
+    """w = exp(a - m) and the cdf as block offset + running sum within the block (the numba kernel's
+    order), and the total as the block sums added in block order."""
+    wu = np.exp(a - m)
+    cdf = np.empty_like(wu)
+    total = 0.0
+    for sl in blocks:
+        cdf[sl] = total + np.cumsum(wu[sl])
+        total = cdf[sl.stop - 1]
+    return wu, cdf, total
+
+
+def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
+    """Ancestor indices: systematic/stratified on the block cdf (stratified uniforms of output block
+    b from block stream b; one block: the filter's stream, as :mod:`pfbench.resampling`), the other
+    schemes from the filter's stream on the sequential running sum."""
+    n = wu.size
+    if len(blocks) == 1 or scheme not in (resampling.Scheme.SYSTEMATIC, resampling.Scheme.STRATIFIED):
+        return resampling.get(scheme)(wu, rng)
+    if scheme == resampling.Scheme.SYSTEMATIC:
+        u = np.full(n, rng.random())
+    else:
+        u = np.concatenate([r.random(sl.stop - sl.start) for r, sl in zip(brngs, blocks)])
+    positions = (u + np.arange(n)) / n * cdf[-1]
+    return np.minimum(np.searchsorted(cdf, positions, side="right"), n - 1)
+
+
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
-              est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None) -> None:
+              est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None, *, brngs=None,
+              n_threads=None, block: int | None = None) -> None:
     """NumPy twin of the numba ``run_group``; fills the output arrays in place (``hist_x``/``hist_w``:
-    the weighted particles of every step, when given with M rows)."""
+    the weighted particles of every step, when given with M rows). ``brngs``: the stream-block
+    generators (:func:`block_streams`; None: one block); ``n_threads`` is ignored."""
     store = hist_x is not None and hist_x.shape[1] > 0
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
-    resample = resampling.get(resampling.Scheme(scheme))
+    scheme = resampling.Scheme(scheme)
     G, n, n_x = x.shape
+    blocks = _blocks(n, int(block or BLOCK))
+    brngs = [rng] if brngs is None else list(brngs)
+    ptype = x.dtype  # float32 particles: float32 normals and storage, model arithmetic in float64
     n_noise = model.n_noise
     logn = np.log(n)
     lw = np.full((G, n), -logn)
@@ -82,36 +167,38 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             xg = x[g]
             first = 0.0
             if method == Method.ASIR:  # first stage
-                mu = transition(xg, ut, t, np.zeros((n, n_noise)), p)
+                mu = transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p)
                 lam_all = _clean(log_likelihood(yt, mu, ut, t, p))
-                wu, _, m1, tot1, deg1 = weigh(lw[g], lam_all)
+                wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
                 if deg1:
                     lam_all[:] = 0.0
-                idx = resample(wu, rng)
+                idx = _resample_into(scheme, wu, cdf, rng, brngs, blocks)
                 xg[:] = xg[idx]
                 lam = lam_all[idx]
                 lw[g] = -logn
-            noise = rng.standard_normal((n, n_noise))
-            xg[:] = transition(xg, ut, t, noise, p)
-            ll = _clean(log_likelihood(yt, xg, ut, t, p))
+            # transition noise: block b from its own stream (one block: the filter's stream)
+            noise = np.concatenate([r.standard_normal((sl.stop - sl.start, n_noise), dtype=ptype)
+                                    for r, sl in zip(brngs, blocks)])
+            xg[:] = transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p)
+            ll = _clean(log_likelihood(yt, xg.astype(np.float64), ut, t, p))
             if method == Method.ASIR:
                 ll = _clean(ll - lam)
-            wu, _, m, total, deg = weigh(lw[g], ll)
+            wu, cdf, m, total, deg = weigh(lw[g], ll, blocks)
             if store:
                 hist_x[g, t] = xg
                 hist_w[g, t] = wu / total
             degen[g, t] = deg
             inc[g, t] = (-np.inf if deg else m + np.log(total)) + first
-            mean = (wu @ xg) / total
+            xf = xg.astype(np.float64)
+            mean = (wu @ xf) / total
             est[g, t] = mean
-            var[g, t] = (wu @ (xg - mean) ** 2) / total
-            wn = wu / total
-            e = 1.0 / np.cumsum(wn * wn)[-1]
+            var[g, t] = (wu @ (xf - mean) ** 2) / total
+            e = total * total / (wu @ wu)  # N_eff = 1 / sum (w_i / total)^2
             ess[g, t] = e
             do = method == Method.BOOTSTRAP or (method == Method.SIR and e < ess_threshold)
             if do:
-                xg[:] = xg[resample(wu, rng)]
+                xg[:] = xg[_resample_into(scheme, wu, cdf, rng, brngs, blocks)]
                 lw[g] = -logn
             else:
                 lw[g] = normalised_log_weights(wu, total)

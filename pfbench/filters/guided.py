@@ -351,7 +351,7 @@ _WARM: set = set()
 
 
 def _run_numba(model, p, rng, y, u, x, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
-    getattr(_numba_backend.kernel_module(model, "guided"), f"run_{kind}")(
+    getattr(_numba_backend.kernel_module(model, "guided", scheme), f"run_{kind}")(
         p, rng, y, u, x, n_noise, scheme, threshold, est, var, ess, inc, res, degen)
 
 

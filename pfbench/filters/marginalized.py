@@ -37,11 +37,13 @@ result then equals the exact Kalman filter on a linear-Gaussian model. :func:`ru
 (``method="kalman"``) runs that same recursion and refuses models with nonlinear states.
 
 Backends and random numbers. The step math is written once, as vectorised ``register_jitable``
-helpers (:func:`kalman_predict`, :func:`kalman_update`, :func:`mixture_moments`); the ``numpy``
-driver runs them as Python with :func:`pfbench.backends.numpy_backend.weigh` and
-:mod:`pfbench.resampling`, the ``numba`` driver (:mod:`pfbench.backends.numba_mpf`) compiles them
-with the model's functions and uses :mod:`pfbench.backends.numba_weights` and
-:func:`pfbench.backends.numba_resampling.resample_into`. Both draw from one
+helpers (:func:`kalman_predict` = :func:`condition_nonlinear` + :func:`time_update`,
+:func:`kalman_update`, :func:`mixture_moments`); the ``numpy`` driver runs them as Python with
+:func:`pfbench.backends.numpy_backend.weigh` and :mod:`pfbench.resampling`, the ``numba`` driver
+(:mod:`pfbench.backends.numba_mpf`) compiles them with the model's functions and uses
+:mod:`pfbench.backends.numba_weights` and the scheme's kernel of
+:mod:`pfbench.backends.numba_resampling`; with d_n = 0 it compiles only the Kalman recursion
+(``run_linear``: no sampling, conditioning or resampling code). Both draw from one
 ``numpy.random.default_rng(seed)`` in this order: the prior ``initial(rng, N_p, p)`` (only when
 d_n > 0; its x^n columns are kept), then per step the x^n noise ``standard_normal((N_p, d_n))``
 followed by the resampling draws. With d_n = 0 nothing is drawn. Both backends draw the same
@@ -106,6 +108,64 @@ def cholesky_batch(S):
 
 
 @register_jitable
+def condition_nonlinear(fn, An, m, P, z, Qn):
+    """Step 1 and the first half of step 2 of the module docstring ([Schon2005] Alg. 1), for
+    d_n > 0: sample x^n_t = f^n + A^n m + L z (L L' = N = A^n P A^n' + Q^n) and condition
+    x^l_{t-1} on it. Returns (x^n_t (n, d_n), m (n, d_l), P (n, d_l, d_l)) conditioned."""
+    n = m.shape[0]
+    d_l = m.shape[1]
+    d_n = fn.shape[1]
+    mm = m.copy()
+    Pm = P.copy()
+    xnew = np.zeros((n, d_n))
+    AP, N = sandwich(An, P, Qn)
+    L = cholesky_batch(N)
+    for a in range(d_n):  # x^n_t = f^n + A^n m + L z
+        acc = fn[:, a].copy()
+        for c in range(d_l):
+            acc += An[:, a, c] * m[:, c]
+        for b in range(a + 1):
+            acc += L[:, a, b] * z[:, b]
+        xnew[:, a] = acc
+    # N^-1 (x^n_t - f^n - A^n m) = L^-T z (back substitution); V = L^-1 A^n P (forward)
+    w = np.zeros((n, d_n))
+    for a in range(d_n - 1, -1, -1):
+        acc = z[:, a].copy()
+        for b in range(a + 1, d_n):
+            acc -= L[:, b, a] * w[:, b]
+        w[:, a] = acc / L[:, a, a]
+    V = np.zeros((n, d_n, d_l))
+    for a in range(d_n):
+        for c in range(d_l):
+            acc = AP[:, a, c].copy()
+            for b in range(a):
+                acc -= L[:, a, b] * V[:, b, c]
+            V[:, a, c] = acc / L[:, a, a]
+    for b in range(d_l):
+        for a in range(d_n):
+            mm[:, b] += AP[:, a, b] * w[:, a]
+    for b in range(d_l):
+        for c in range(d_l):
+            for a in range(d_n):
+                Pm[:, b, c] -= V[:, a, b] * V[:, a, c]
+    return xnew, mm, Pm
+
+
+@register_jitable(inline="always")
+def time_update(f, A, m, P, Q):
+    """The linear-Gaussian time update (second half of step 2): m_pred = f + A m and
+    P_pred = A P A' + Q per particle, for f (n, d_l), A (n, d_l, d_l), Q (d_l, d_l).
+    With d_n = 0 this is the whole prediction of the Kalman filter."""
+    d_l = m.shape[1]
+    m_pred = f.copy()
+    for a in range(d_l):
+        for b in range(d_l):
+            m_pred[:, a] += A[:, a, b] * m[:, b]
+    _, P_pred = sandwich(A, P, Q)
+    return m_pred, P_pred
+
+
+@register_jitable
 def kalman_predict(fn, An, fl, Al, m, P, z, Qn, Ql, T, corr):
     """Steps 1-2 of the module docstring ([Schon2005] Alg. 1): sample x^n_t and predict x^l_t.
 
@@ -113,44 +173,17 @@ def kalman_predict(fn, An, fl, Al, m, P, z, Qn, Ql, T, corr):
     (n, d_l, d_l): x^l_{t-1} | Y_{t-1}; ``z`` (n, d_n) standard normals; ``Qn`` (d_n, d_n); ``Ql``
     (d_l, d_l) the (decorrelated) x^l noise covariance; ``T`` (d_l, d_n) = Q^ln (Q^n)^-1, used
     when ``corr``. Returns (x^n_t (n, d_n), m_pred (n, d_l), P_pred (n, d_l, d_l)).
+    :func:`condition_nonlinear` (d_n > 0) followed by :func:`time_update`.
     """
     n = m.shape[0]
     d_l = m.shape[1]
     d_n = fn.shape[1]
-    mm = m.copy()
-    Pm = P.copy()
-    xnew = np.zeros((n, d_n))
     if d_n > 0:
-        AP, N = sandwich(An, P, Qn)
-        L = cholesky_batch(N)
-        for a in range(d_n):  # x^n_t = f^n + A^n m + L z
-            acc = fn[:, a].copy()
-            for c in range(d_l):
-                acc += An[:, a, c] * m[:, c]
-            for b in range(a + 1):
-                acc += L[:, a, b] * z[:, b]
-            xnew[:, a] = acc
-        # N^-1 (x^n_t - f^n - A^n m) = L^-T z (back substitution); V = L^-1 A^n P (forward)
-        w = np.zeros((n, d_n))
-        for a in range(d_n - 1, -1, -1):
-            acc = z[:, a].copy()
-            for b in range(a + 1, d_n):
-                acc -= L[:, b, a] * w[:, b]
-            w[:, a] = acc / L[:, a, a]
-        V = np.zeros((n, d_n, d_l))
-        for a in range(d_n):
-            for c in range(d_l):
-                acc = AP[:, a, c].copy()
-                for b in range(a):
-                    acc -= L[:, a, b] * V[:, b, c]
-                V[:, a, c] = acc / L[:, a, a]
-        for b in range(d_l):
-            for a in range(d_n):
-                mm[:, b] += AP[:, a, b] * w[:, a]
-        for b in range(d_l):
-            for c in range(d_l):
-                for a in range(d_n):
-                    Pm[:, b, c] -= V[:, a, b] * V[:, a, c]
+        xnew, mm, Pm = condition_nonlinear(fn, An, m, P, z, Qn)
+    else:
+        xnew = np.zeros((n, d_n))
+        mm = m.copy()
+        Pm = P.copy()
     A = Al
     f = fl
     if corr:  # decorrelated noise: f^l + T (x^n_t - f^n), A^l - T A^n
@@ -161,11 +194,7 @@ def kalman_predict(fn, An, fl, Al, m, P, z, Qn, Ql, T, corr):
                 f[:, a] += T[a, c] * (xnew[:, c] - fn[:, c])
                 for b in range(d_l):
                     A[:, a, b] -= T[a, c] * An[:, c, b]
-    m_pred = f.copy()
-    for a in range(d_l):
-        for b in range(d_l):
-            m_pred[:, a] += A[:, a, b] * mm[:, b]
-    _, P_pred = sandwich(A, Pm, Ql)
+    m_pred, P_pred = time_update(f, A, mm, Pm, Ql)
     return xnew, m_pred, P_pred
 
 
@@ -389,16 +418,21 @@ def _run_numpy(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
 _WARM: set = set()
 
 
-def _numba_module(model):
+def _numba_module(model, scheme):
     from ..backends import numba_backend
 
     numba_backend.register_family("mpf", "numba_mpf.py",
                                   ("initial", "cl_transition", "cl_observation", "cl_constrain"))
-    return numba_backend.kernel_module(model, "mpf")
+    return numba_backend.kernel_module(model, "mpf", scheme)
 
 
 def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
-    run = _numba_module(model).run
+    if s["d_n"] == 0:  # one Kalman/EKF recursion: no random numbers, no resampling scheme
+        _numba_module(model, None).run_linear(p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"],
+                                              s["whiten"], s["logdet"], s["m0"], s["P0"], est, cov,
+                                              ess, inc, degen)
+        return
+    run = _numba_module(model, scheme).run
     run(p, rng, s["yw"], u, n, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
         s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen)
 
@@ -408,7 +442,7 @@ def _warm_up(model, p, n, s, u, scheme) -> None:
     generator (the caller's stream is not touched)."""
     import numba
 
-    key = (type(model), str(numba.typeof(p)))
+    key = (type(model), str(numba.typeof(p)), scheme if s["d_n"] else None)
     if key in _WARM:
         return
     n_x = model.n_x

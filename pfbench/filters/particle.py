@@ -38,6 +38,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .. import backends
+from ..backends.numpy_backend import BLOCK, block_streams
 from ..errors import InputError
 from ..resampling import Scheme
 from .inputs import check_backend, check_dtype, ess_count, seed_sequence
@@ -61,7 +62,8 @@ def split_particles(n_particles: int, n_filters: int) -> int:
 def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: int = 1,
                  resampling="systematic", ess_threshold=None, backend: str = "numba",
                  dtype: str = "float64", seed=0, common_random_numbers: bool = False,
-                 n_threads: int | None = None, store_particles: bool = False) -> FilterResult:
+                 n_threads: int | None = None, store_particles: bool = False,
+                 _block: int | None = None) -> FilterResult:
     """Run a bootstrap-family filter on validated ``y``/``u`` (see :func:`pfbench.run_filter`)."""
     method = Method.parse(method)
     scheme = Scheme.parse(resampling)
@@ -78,7 +80,7 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     rngs = streams(seed, n_filters, common_random_numbers)
     out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
                               resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
-                              n_threads=n_threads, store_particles=store_particles)
+                              n_threads=n_threads, store_particles=store_particles, block=_block)
     est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
@@ -101,7 +103,7 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
 
 def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampling,
                ess_threshold: float, backend: str, dtype: str = "float64", n_threads: int | None = None,
-               store_particles: bool = False):
+               store_particles: bool = False, block: int | None = None):
     """Run ``n_filters`` filters of ``n_per`` particles on validated, contiguous ``y``/``u``.
 
     The filters are split evenly over the random streams ``rngs`` (one group per stream, see
@@ -111,6 +113,11 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     :class:`Method` (MultiPDF sub-filters run as bootstrap), ``resampling`` a :class:`Scheme` and
     ``ess_threshold`` a particle count. ``store_particles`` adds ``particles`` (N_f, M, n, n_x) and
     ``weights`` (N_f, M, n), the normalised weighted particles of every step before resampling.
+    ``block``: the largest stream block (default :data:`pfbench.backends.numpy_backend.BLOCK`;
+    :func:`~pfbench.backends.numpy_backend.block_bounds` gives the layout; a run with one block is
+    the single-stream filter, see :mod:`pfbench.backends.numba_particle`).
+    A single group (one filter, or MultiPDF with common random numbers) runs its block loops on
+    ``n_threads`` threads on numba; several groups run in a thread pool of serial kernels.
     Used by :func:`run_particle` and by the sweep runner.
     """
     be = backends.get(backend)
@@ -131,18 +138,23 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
         raise InputError(f"run_groups runs the particle methods, not {method.label!r}")
     code = int(Method.BOOTSTRAP if method == Method.MULTIPDF else method)  # MultiPDF sub-filters
     scheme = int(Scheme.parse(resampling))
-    if backend == "numba":
-        be.warm_up(model, p, y, u, ptype)  # compile (or load from cache) outside the timed region
+    block = int(block or BLOCK)
+    workers = min(n_groups, n_threads or _cores())
+    pooled = n_groups > 1 and backend == "numba" and workers > 1
+    # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
+    inner = 1 if (pooled or n_groups > 1) else n_threads
+    brngs = [block_streams(r, r.bit_generator.seed_seq, n_per, block) for r in rngs]
+    if backend == "numba":  # compile (or load from cache) outside the timed region
+        be.warm_up(model, p, y, u, ptype, scheme, parallel=len(brngs[0]) > 1 and inner != 1)
 
     def job(gi: int):
         sl = slice(gi * per_group, (gi + 1) * per_group)
         be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, ess_threshold, out["est"][sl],
                      out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl],
-                     out["particles"][sl], out["weights"][sl])
+                     out["particles"][sl], out["weights"][sl], brngs=brngs[gi], n_threads=inner, block=block)
 
     t0 = time.perf_counter()
-    workers = min(n_groups, n_threads or _cores())
-    if n_groups > 1 and backend == "numba" and workers > 1:
+    if pooled:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(job, range(n_groups)))
     else:

@@ -22,7 +22,7 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
                n_filters: int = 1, resampling: str = "systematic", ess_threshold: float | None = None,
                backend: str = "numba", dtype: str = "float64", seed=0,
                common_random_numbers: bool = False, n_threads: int | None = None,
-               store_particles: bool = False) -> FilterResult:
+               store_particles: bool = False, _block: int | None = None) -> FilterResult:
     """Filter measurements ``y`` (M, n_y) with inputs ``u`` (M, n_u); returns a :class:`FilterResult`.
 
     Parameters
@@ -45,7 +45,10 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     dtype : particle storage precision, ``float64`` or ``float32``.
     seed : int or ``numpy.random.SeedSequence``.
     common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
-    n_threads : threads for parallel MultiPDF sub-filters (numba, CRN off); default: all cores.
+    n_threads : numba threads (default None: all cores; 1: sequential). One filter with more than
+        one stream block (N_p > :data:`pfbench.backends.numpy_backend.BLOCK`) runs its particle
+        loops on them; MultiPDF without common random numbers runs its sub-filters in parallel
+        instead (each on one thread). Results never depend on it.
     store_particles : particle family only: keep the weighted particles of every step (before
         resampling) in ``extras["particles"]`` (N_f, M, N, n_x) and ``extras["weights"]`` (N_f, M, N).
     """
@@ -67,7 +70,7 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
                             resampling=resampling, ess_threshold=ess_threshold, backend=backend,
                             dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
-                            n_threads=n_threads, store_particles=store_particles)
+                            n_threads=n_threads, store_particles=store_particles, _block=_block)
     if n_filters != 1:
         raise InputError(f"n_filters={n_filters} needs method='multipdf'")
     if store_particles:

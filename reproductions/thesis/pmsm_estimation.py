@@ -17,7 +17,7 @@ import pandas as pd
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, run_batch, run_once
 from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
-from pfbench.verdicts import DISAGREE, AGREE, UNDECIDED, Outcome, direction, holds
+from pfbench.verdicts import direction, holds, no_dependence
 
 DT = 125e-6
 FIG44_TIMES = (0.0, 0.009, 0.019, 0.028, 0.038, 0.047, 0.056, 0.066, 0.075)
@@ -234,25 +234,6 @@ EKF_PRIOR_SD = math.pi / math.sqrt(3.0)
 #: offset 0) must lie within +-NO_DEP_MARGIN; at the thesis's 10 runs per point one binomial sd of a
 #: rate near 1/2 is 16 points, so differences below 20 points cannot be significant at that scale
 NO_DEP_MARGIN = 0.2
-
-
-def no_dependence(diffs, margin: float, what: str) -> Outcome:
-    """The paper says a paired difference is "not significant": disagree if the 95 % t-interval of
-    the mean difference excludes 0 (a significant dependence), agree if it lies within +-``margin``,
-    undecided otherwise (built on :func:`pfbench.verdicts.direction`'s interval)."""
-    d = direction(diffs, +1, what)
-    if d.interval is None:
-        return d
-    lo, hi = d.interval
-    rule = (f"95 % t-interval of the mean {what} over {d.n} runs: disagree if it excludes 0, agree if "
-            f"it lies within ±{margin:g}, undecided otherwise")
-    if lo > 0 or hi < 0:
-        verdict = DISAGREE
-    elif -margin <= lo and hi <= margin:
-        verdict = AGREE
-    else:
-        verdict = UNDECIDED
-    return Outcome(verdict, rule, d.ours, d.interval, d.n)
 
 
 @recipe("thesis:fig4.6", title="Estimation quality vs the prior's theta offset, EKF vs SMC (thesis Fig. 4.6)",

@@ -22,7 +22,7 @@ import json, pfbench
 from pfbench.backends.numba_backend import kernel_module
 m = pfbench.models.get("ob1"); tr = m.simulate(5, seed=0)
 pfbench.run_filter(m, tr.y, method="bootstrap", n_particles=8, backend="numba", seed=0)
-st = kernel_module(m).run_group.stats
+st = kernel_module(m, "particle", "systematic").run_group.stats
 print(json.dumps({"hits": sum(st.cache_hits.values()), "misses": sum(st.cache_misses.values())}))
 """
 
@@ -84,21 +84,24 @@ KERNEL = """
 import json, numpy as np, pfbench
 assert pfbench.__file__.startswith({root!r}), pfbench.__file__
 m = pfbench.models.get("ob1"); tr = m.simulate(3, seed=0)
-r = pfbench.run_filter(m, tr.y, method="bootstrap", n_particles=16, backend="numba", seed=0)
+r = pfbench.run_filter(m, tr.y, method="bootstrap", n_particles=16, backend="numba", seed=0,
+                       resampling="residual")
 print(json.dumps({{"est": r.estimates[:, 0].tolist()}}))
 """
 
 
 def test_editing_resampling_changes_the_generated_filter_kernel(package_copy):
-    """The generated particle kernel inlines systematic resampling from numba_resampling.py; making
+    """The generated particle kernel inlines residual resampling from numba_resampling.py (systematic
+    and stratified are the kernel's own merge); making
     every resampled particle a copy of the first ancestor must change the estimates of step 3."""
     pkg, env = package_copy
     code = KERNEL.format(root=str(pkg))
     before = _run(code, env)["est"]
     res = pkg / "backends" / "numba_resampling.py"
     text = res.read_text()
-    assert "        idx[i] = j\n" in text
-    res.write_text(text.replace("        idx[i] = j\n", "        idx[i] = 0\n", 1))
+    line = "            idx[k] = i\n"  # _expand: the residual offspring counts become ancestors
+    assert line in text
+    res.write_text(text.replace(line, "            idx[k] = 0\n", 1))
     after = _run(code, env)["est"]
     assert before[:1] == after[:1] and before[2] != after[2]
 

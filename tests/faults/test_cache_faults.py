@@ -27,9 +27,9 @@ import json, pfbench
 from pfbench.backends.numba_backend import kernel_module
 m = pfbench.models.get("ob1"); tr = m.simulate(6, seed=3)
 r = pfbench.run_filter(m, tr.y, method="bootstrap", n_particles=32, backend="numba", seed=5)
-st = kernel_module(m).run_group.stats
+st = kernel_module(m, "particle", "systematic").run_group.stats
 print(json.dumps({"est": r.estimates.ravel().tolist(), "var": r.variances.ravel().tolist(),
-                  "loglik": r.loglik, "hits": sum(st.cache_hits.values()), "file": kernel_module(m).__file__}))
+                  "loglik": r.loglik, "hits": sum(st.cache_hits.values()), "file": kernel_module(m, "particle", "systematic").__file__}))
 """
 CLI = ["-c", "import sys; from pfbench.cli import main; sys.exit(main())", "run", "--model", "ob1",
        "--particles", "32", "--steps", "6", "--seed", "5", "--json"]
@@ -150,8 +150,8 @@ def test_entry_holding_another_functions_code_is_recompiled(template, cache):
     today numba loads it and calls the wrong machine code."""
     src, _, clean, _ = template
     target = _kernel_entry(cache, ".nbc")
-    other = sorted((cache / "pf" / "numba").glob("backends_*/numba_weights.weigh-*.nbc"))
-    assert other, "weigh() was not cached"
+    other = sorted((cache / "pf" / "numba").glob("kernels_*/k_particle_*._pass_b-*.nbc"))
+    assert other, "the kernel's weighting pass was not cached"
     shutil.copyfile(other[0], target)
     r = _run(["-c", SCRIPT], cache, src)
     assert r.returncode == 0, r.stderr

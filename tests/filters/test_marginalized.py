@@ -132,6 +132,13 @@ def test_mpf_and_kalman_equal_the_exact_kf_on_a_linear_model(backend):
         assert res.loglik == pytest.approx(res.loglik_increments.sum(), abs=1e-12)
     kal = run_kalman(model, tr.y, tr.u, backend=backend)
     assert kal.method == "kalman" and kal.n_particles == 0 and np.isnan(kal.ess).all()
+    if backend == "numba":
+        # d_n = 0 compiles only the linear kernel (no x^n sampling, conditioning or resampling).
+        # Mutation caught: dispatching the all-linear case to the general `run` kernel.
+        from pfbench.filters.marginalized import _numba_module
+
+        mod = _numba_module(model, None)
+        assert mod.run_linear.signatures and not mod.run.signatures
 
 
 def test_kalman_refuses_nonlinear_states():

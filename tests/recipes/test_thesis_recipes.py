@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pfbench.recipes import resolve, run
-from pfbench.verdicts import AGREE, DISAGREE, UNDECIDED, VERDICTS
+from pfbench.verdicts import AGREE, VERDICTS
 
 TINY = [
     ("thesis:fig2.2", {"steps": "10"}), ("thesis:fig2.3", {"steps": "10"}),
@@ -73,15 +73,6 @@ def test_quadratic_reading_observes_x_squared_over_20():
     assert ll[1] == pytest.approx(ll[2]) and ll[1] > ll[0]
     assert ll[1] == pytest.approx(-math.log(0.05) - 0.5 * math.log(2 * math.pi))
     assert type(m.without_outlier()) is ThesisExampleQuadratic
-
-
-def test_no_dependence_rule():
-    from reproductions.thesis.pmsm_estimation import no_dependence
-
-    assert no_dependence(np.zeros(10), 0.2, "d").verdict == AGREE          # interval [0, 0]
-    assert no_dependence(np.ones(10) * 0.5 + np.linspace(-0.01, 0.01, 10), 0.2, "d").verdict == DISAGREE
-    wide = np.array([1.0, -1.0, 0.0, 1.0, -1.0, 0.0])                       # contains 0, wider than 0.2
-    assert no_dependence(wide, 0.2, "d").verdict == UNDECIDED
 
 
 def test_tables_match_the_document(tmp_path):

@@ -64,6 +64,7 @@ static const real R_VAR = L(1.0);  /* var n(k) */
 static const real X0 = L(0.1);
 static const real TWO_PI = L(6.283185307179586);
 
+#ifndef PF_HOST_RNG /* host benchmark only (host_bench.c supplies both); never set on the MCU */
 /* Uniform on (0, 1) from the C library generator. */
 static NOINLINE real rand_uniform(void)
 {
@@ -77,6 +78,10 @@ NOINLINE real randn(void)
     real u2 = rand_uniform();
     return SQRT(L(-2.0) * LOG(u1)) * COS(TWO_PI * u2);
 }
+#else
+static real rand_uniform(void); /* defined after this file by the host harness */
+static real randn(void);
+#endif /* PF_HOST_RNG */
 
 /* Ob1 state transition without noise, [Embedded] eq. 6. */
 static real transition(real x, int k)

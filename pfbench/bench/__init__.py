@@ -1,0 +1,326 @@
+"""``pfbench bench``: engine speed as ns per particle-step and as ratios measured in one run.
+
+Sections (each writes its JSON into the directory of ``--out``, default ``results/bench/``):
+
+* **main** (``bench.json``), all single-threaded unless stated, medians of ``--repeats``:
+
+  - Ob1 bootstrap ([Embedded] Alg. 1, systematic) at (M, N_p) = (1000, 1000), (500, 1000),
+    (500, 500) and (100, 100000), numba on 1 thread and NumPy, float64 and float32;
+  - the C reference in the same run (:mod:`pfbench.bench.c_reference`): the project's pf_ob1.c
+    built for this host at -O3 -march=native, once with its own libc RNG and once with a fast RNG;
+  - the irreducible-work floor (1 normal + 1 exp per particle-step) and its breakdown
+    (:mod:`pfbench.bench.floor`);
+  - numba on all cores vs 1 thread at N_p = 10^5 and 10^6;
+  - MultiPDF ([MultiPDF] Alg. 2), N_f = 2: 1 thread vs all cores;
+  - the PMSM SMC step with the optimal proposal ([Thesis] §4.2.1, 60 particles) against the
+    drive's 125 us sampling period;
+  - the ``particles`` library's bootstrap filter (``scripts/bench_particles.py`` in
+    ``.venv-particles``, when it exists; ``make bench`` creates it);
+  - every ratio printed next to its target with a computed verdict (:mod:`pfbench.bench.report`).
+
+* **startup** (``startup.json``, :mod:`pfbench.bench.startup`): cold and warm wall time of
+  ``pfbench run`` per method.
+* **scaling** (``scaling.json``, ``scaling.png``, :mod:`pfbench.bench.scaling`): ns per
+  particle-step for N_p = 10^2 ... 10^7.
+
+``pfbench bench`` runs main + startup (``--quick``: main only, small), ``--scaling`` and/or
+``--startup`` run only those sections, ``--all`` runs all three. Compilation is excluded from
+every timing but the startup section's: each configuration runs once untimed first.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import click
+
+from .floor import breakdown_ns, floor_ns
+from .timing import filter_ns, particles_ns
+
+CONFIGS = ((1000, 1000), (500, 1000), (500, 500), (100, 100_000))
+QUICK_CONFIGS = ((200, 1000), (20, 100_000))
+#: (M, N_p) of the numba all-threads vs 1-thread comparison
+THREAD_CONFIGS = ((100, 100_000), (20, 1_000_000))
+QUICK_THREAD_CONFIGS = ((20, 100_000),)
+
+
+def _ratio(a, b):
+    return a / b if a is not None and b is not None and b > 0 else None
+
+
+def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True, progress: bool = True,
+              with_c: bool = True) -> dict:
+    """The main section (see the module docstring); returns the provenance record written to
+    ``bench.json``."""
+    from tqdm.auto import tqdm
+
+    from .. import models
+    from ..provenance import provenance
+    from . import c_reference
+
+    model = models.get("ob1")
+    configs = QUICK_CONFIGS if quick else CONFIGS
+    thread_cfgs = QUICK_THREAD_CONFIGS if quick else THREAD_CONFIGS
+    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1
+    bar = tqdm(total=n_jobs, desc="bench", disable=not progress, file=sys.stderr, leave=False)
+    rows, floors, c_rows = [], [], []
+    c_note = None if with_c else "not run: --no-c"
+    for m, n in configs:
+        traj = model.simulate(m, seed=1)
+        reps = repeats if n <= 1000 else max(1, repeats // 2)
+        bar.set_postfix_str(f"M={m} N_p={n} floor")
+        fl = {"steps": m, "particles": n, "numba_ns": floor_ns(n, m, reps, "numba")}
+        bar.update()
+        fl["numpy_ns"] = floor_ns(n, m, reps, "numpy")
+        bar.update()
+        fl["breakdown_ns"] = breakdown_ns(n, m, reps)
+        bar.update()
+        floors.append(fl)
+        for be in ("numba", "numpy"):
+            for dt in ("float64", "float32"):
+                bar.set_postfix_str(f"M={m} N_p={n} {be} {dt}")
+                ns = filter_ns(model, traj, n, be, dt, reps if be == "numba" else max(1, reps // 2),
+                               n_threads=1 if be == "numba" else None)
+                bar.update()
+                rows.append({"steps": m, "particles": n, "backend": be, "dtype": dt,
+                             "threads": 1 if be == "numba" else None, "ns_per_particle_step": ns,
+                             "floor_numba_ns": fl["numba_ns"], "floor_numpy_ns": fl["numpy_ns"],
+                             "ratio_to_floor": ns / fl["numba_ns"]})
+        for variant in c_reference.VARIANTS:
+            bar.set_postfix_str(f"M={m} N_p={n} C {variant}")
+            if c_note is None:
+                try:
+                    c_rows.append(c_reference.filter_ns(variant, m, n, reps))
+                except c_reference.CUnavailable as exc:
+                    c_note = str(exc)
+            bar.update()
+    threads = []
+    for m, n in thread_cfgs:
+        traj = model.simulate(m, seed=1)
+        reps = max(1, repeats // 2)
+        bar.set_postfix_str(f"N_p={n} threads")
+        one = filter_ns(model, traj, n, "numba", "float64", reps, n_threads=1)
+        bar.update()
+        every = filter_ns(model, traj, n, "numba", "float64", reps, n_threads=None)
+        bar.update()
+        threads.append({"steps": m, "particles": n, "ns_1_thread": one, "ns_all_threads": every,
+                        "speedup": one / every, "cores": os.cpu_count()})
+    # MultiPDF: sub-filters in parallel
+    n_mp = 200_000 if not quick else 50_000
+    traj = model.simulate(50 if not quick else 30, seed=2)
+    mp_reps = max(3, repeats // 2)  # short runs: thread start-up noise needs a few repeats
+    bar.set_postfix_str("MultiPDF")
+    one = filter_ns(model, traj, n_mp, "numba", "float64", mp_reps, "multipdf", 2, n_threads=1)
+    two = filter_ns(model, traj, n_mp, "numba", "float64", mp_reps, "multipdf", 2, n_threads=2)
+    bar.update(2)
+    multipdf = {"particles": n_mp, "filters": 2, "ns_1_thread": one, "ns_2_threads": two,
+                "speedup": one / two, "cores": os.cpu_count()}
+    # PMSM SMC with the optimal proposal ([Thesis] §4.2.1): must fit the drive's 125 us period
+    from ..plants.pmsm_control.smc import step_time_us
+
+    bar.set_postfix_str("PMSM SMC")
+    pmsm = {"particles": 60, "period_us": 125.0,
+            "us_per_step_mean": step_time_us(n_particles=60, point="mean", repeats=max(1, repeats // 2)),
+            "us_per_step_max": step_time_us(n_particles=60, point="max", repeats=max(1, repeats // 2))}
+    pmsm["margin_x"] = pmsm["period_us"] / max(pmsm["us_per_step_mean"], pmsm["us_per_step_max"])
+    bar.update()
+    key, big = configs[0], configs[-1]
+    bar.set_postfix_str("particles library")
+    part = particles_ns(key[0], key[1], max(1, repeats // 2)) if with_particles else None
+    bar.update()
+    bar.close()
+
+    s, targets = summarize(rows, floors, c_rows, threads, part, key, big)
+    return provenance(kind="bench", repeats=repeats, quick=quick, rows=rows, floors=floors, c_rows=c_rows,
+                      c_note=c_note, threads=threads, multipdf=multipdf, pmsm_smc=pmsm,
+                      particles_library=part, summary=s, targets=targets)
+
+
+def summarize(rows, floors, c_rows, threads, part, key, big) -> tuple[dict, list]:
+    """The ratios of the main section (all from timings of the same run) and the targets with
+    computed verdicts. ``key`` = (M, N_p) of the headline configuration, ``big`` the large one."""
+    from .report import check
+
+    by = {(r["steps"], r["particles"], r["backend"], r["dtype"]): r["ns_per_particle_step"] for r in rows}
+    cby = {(r["steps"], r["particles"], r["variant"]): r["ns_per_particle_step"] for r in c_rows}
+    nb, npy = by[key + ("numba", "float64")], by[key + ("numpy", "float64")]
+    c_fast, c_libc = cby.get(key + ("fast",)), cby.get(key + ("libc",))
+    c_best = min((v for v in (c_fast, c_libc) if v is not None), default=None)
+    fl0 = floors[0]
+    s = {"config": {"steps": key[0], "particles": key[1]}, "big_config": {"steps": big[0], "particles": big[1]},
+         "numba_ns": nb, "numpy_ns": npy, "floor_numba_ns": fl0["numba_ns"],
+         "c_fast_ns": c_fast, "c_libc_ns": c_libc, "c_best_ns": c_best,
+         "c_best_variant": None if c_best is None else ("fast" if c_best == c_fast else "libc"),
+         "numba_over_c": _ratio(nb, c_best), "numba_over_c_libc": _ratio(nb, c_libc),
+         "numpy_over_c": _ratio(npy, c_best), "c_libc_over_c_fast": _ratio(c_libc, c_fast),
+         "numba_over_floor": nb / fl0["numba_ns"],
+         "numpy_over_numba_big": by[big + ("numpy", "float64")] / by[big + ("numba", "float64")],
+         "float32_over_float64_numba": by[key + ("numba", "float32")] / nb,
+         "float32_speedup_big": by[big + ("numba", "float64")] / by[big + ("numba", "float32")]}
+    if part and "ns_per_particle_step" in part:
+        s["particles_ns"] = part["ns_per_particle_step"]
+        s["particles_over_numba"] = part["ns_per_particle_step"] / nb
+        s["particles_over_numpy"] = part["ns_per_particle_step"] / npy
+    for t in threads:
+        s[f"threads_speedup_{t['particles']:.0e}".replace("+0", "")] = t["speedup"]
+    m_lab = f"M={key[0]}, N_p={key[1]}"
+    targets = [check("numba_over_c", s["numba_over_c"],
+                     f"numba float64 1 thread / C ({s['c_best_variant'] or 'n/a'} RNG), {m_lab}"),
+               check("numba_over_floor", s["numba_over_floor"], f"numba float64 1 thread / floor, {m_lab}"),
+               check("float32_speedup_1e5", s["float32_speedup_big"] if big[1] == 100_000 else None)]
+    for t in threads:
+        k = {100_000: "threads_speedup_1e5", 1_000_000: "threads_speedup_1e6"}.get(t["particles"])
+        if k:
+            targets.append(check(k, t["speedup"]))
+    return s, targets
+
+
+def _f(v, spec=".1f", none="n/a"):
+    return none if v is None else format(v, spec)
+
+
+def main_text(res: dict) -> list[str]:
+    """The main section as printed lines."""
+    from .report import fmt
+
+    out = [f"{'M':>6} {'N_p':>7} {'engine':>22} {'dtype':>8} {'ns/p-step':>10} {'x floor':>8}"]
+    for r in res["rows"]:
+        eng = f"{r['backend']}" + (", 1 thread" if r["threads"] == 1 else "")
+        out.append(f"{r['steps']:>6} {r['particles']:>7} {eng:>22} {r['dtype']:>8} "
+                   f"{r['ns_per_particle_step']:>10.1f} {r['ratio_to_floor']:>8.2f}")
+    floor_by = {(f["steps"], f["particles"]): f["numba_ns"] for f in res["floors"]}
+    for c in res["c_rows"]:
+        out.append(f"{c['steps']:>6} {c['particles']:>7} {'C ' + c['variant'] + ' RNG':>22} {'float64':>8} "
+                   f"{c['ns_per_particle_step']:>10.1f} "
+                   f"{c['ns_per_particle_step'] / floor_by[(c['steps'], c['particles'])]:>8.2f}")
+    if res["c_rows"]:
+        from .c_reference import RNG
+
+        c0 = res["c_rows"][0]
+        out.append(f"C reference: pfbench/mcu/c/pf_ob1.c via host_bench.c, {c0['compiler']}, {c0['flags']}; "
+                   + "; ".join(f"{v} RNG = {RNG[v]}" for v in RNG))
+    if res["c_note"]:
+        out.append(f"C reference: {res['c_note']}")
+    for f in res["floors"]:
+        b = f["breakdown_ns"]
+        out.append(f"floor M={f['steps']} N_p={f['particles']} (1 normal + 1 exp per particle-step): numba "
+                   f"{f['numba_ns']:.1f} ns, numpy {f['numpy_ns']:.1f} ns; parts (numba): normal "
+                   f"{b['normal']:.1f} + exp {b['exp']:.1f} ns, one memory pass {b['memory_pass']:.2f} ns")
+    for t in res["threads"]:
+        out.append(f"numba float64 N_p={t['particles']} M={t['steps']}: 1 thread {t['ns_1_thread']:.1f} ns, "
+                   f"all {t['cores']} cores {t['ns_all_threads']:.1f} ns, speed-up {t['speedup']:.2f}x")
+    mp = res["multipdf"]
+    out.append(f"MultiPDF N_p={mp['particles']} N_f=2 numba: 1 thread {mp['ns_1_thread']:.1f} ns, "
+               f"2 threads {mp['ns_2_threads']:.1f} ns, speed-up {mp['speedup']:.2f}x on {mp['cores']} cores")
+    pm = res["pmsm_smc"]
+    out.append(f"PMSM SMC, 60 particles, numba: {pm['us_per_step_mean']:.1f} us/step (mean estimate), "
+               f"{pm['us_per_step_max']:.1f} us/step (maximum); period 125 us, margin {pm['margin_x']:.1f}x")
+    s = res["summary"]
+    part = res["particles_library"]
+    if part is None:
+        out.append("particles library: not run (no .venv-particles; `make bench` creates it)")
+    elif "ns_per_particle_step" not in part:
+        out.append(f"particles library: failed: {part.get('error')}")
+    else:
+        out.append(f"particles library {part.get('version', '?')}: {part['ns_per_particle_step']:.1f} ns "
+                   f"= {s['particles_over_numba']:.1f}x numba, {s['particles_over_numpy']:.2f}x numpy")
+    cfg, big = s["config"], s["big_config"]
+    out.append(f"ratios (M={cfg['steps']}, N_p={cfg['particles']} unless noted): numba/C "
+               f"{_f(s['numba_over_c'], '.2f')} (C {s['c_best_variant'] or 'n/a'} RNG), numba/C libc RNG "
+               f"{_f(s['numba_over_c_libc'], '.2f')}, numpy/C {_f(s['numpy_over_c'], '.2f')}, numba/floor "
+               f"{s['numba_over_floor']:.2f}, float32/float64 time {s['float32_over_float64_numba']:.2f}; "
+               f"at N_p={big['particles']}: numpy/numba {s['numpy_over_numba_big']:.2f}, float32 speed-up "
+               f"{s['float32_speedup_big']:.2f}x")
+    fl = res["floors"][0]
+    b = fl["breakdown_ns"]
+    rest = s["numba_ns"] - fl["numba_ns"]
+    out.append(f"where the ns go (numba float64 1 thread, M={cfg['steps']}, N_p={cfg['particles']}: "
+               f"{s['numba_ns']:.1f} ns): floor {fl['numba_ns']:.1f} ns = normal {b['normal']:.1f} + exp "
+               f"{b['exp']:.1f} (parts timed alone); the other {rest:.1f} ns are the rest of the step "
+               f"(transition, likelihood arithmetic, weight normalisation, moments, resampling); one pass "
+               f"over the particles costs {b['memory_pass']:.2f} ns at this N_p")
+    out.extend(fmt(t) for t in res["targets"])
+    return out
+
+
+def _section_paths(out_path) -> dict:
+    d = Path(out_path).parent
+    return {"bench": Path(out_path), "startup": d / "startup.json", "scaling": d / "scaling.json",
+            "scaling_png": d / "scaling.png"}
+
+
+@click.command()
+@click.option("--repeats", type=click.IntRange(1, 100), default=5, show_default=True,
+              help="Timed repetitions per configuration (medians are reported).")
+@click.option("--quick", is_flag=True, help="Smaller configurations (a smoke run).")
+@click.option("--scaling", is_flag=True, help="Only (or also, with --startup) the N_p = 10^2..10^7 scaling "
+              "section: scaling.json and scaling.png beside --out.")
+@click.option("--startup", is_flag=True, help="Only (or also, with --scaling) the cold/warm start per method: "
+              "startup.json beside --out.")
+@click.option("--all", "run_all", is_flag=True, help="Main, startup and scaling sections.")
+@click.option("--cold-repeats", type=click.IntRange(1, 20), default=1, show_default=True,
+              help="Cold starts per method (each on a fresh, empty cache; expensive).")
+@click.option("--no-particles", is_flag=True, help="Skip the `particles` library comparison.")
+@click.option("--no-c", is_flag=True, help="Skip the C reference.")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), default="results/bench/bench.json",
+              show_default=True, help="Main JSON; the other sections write beside it.")
+@click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
+def bench(repeats, quick, scaling, startup, run_all, cold_repeats, no_particles, no_c, out_path, as_json):
+    """Time the engine against the floor, the C reference and the `particles` library; cold/warm
+    start per method (--startup); cost vs N_p (--scaling)."""
+    from ..io import to_json, write_json
+    from ..resources import check_writable, path_error
+
+    if run_all:
+        sections = ["bench", "startup", "scaling"]
+    elif scaling or startup:
+        sections = [s for s, on in (("startup", startup), ("scaling", scaling)) if on]
+    else:
+        sections = ["bench"] if quick else ["bench", "startup"]
+    paths = _section_paths(out_path)
+    for s in sections:
+        check_writable(paths[s], "--out")  # before minutes of timing, not after
+    results, lines = {}, []
+
+    def save(name, res):
+        try:
+            write_json(paths[name], res)
+        except OSError as exc:  # e.g. the disk filled up meanwhile
+            raise path_error(exc, paths[name], "--out") from None
+        results[name] = res
+
+    if "bench" in sections:
+        res = run_bench(repeats=repeats, quick=quick, with_particles=not no_particles, with_c=not no_c)
+        save("bench", res)
+        lines += main_text(res) + [f"-> {paths['bench']}"]
+        if not as_json:
+            click.echo("\n".join(lines))
+            lines = []
+    if "startup" in sections:
+        from .startup import CASES, run_startup, text
+
+        cases = CASES[:1] if quick else CASES
+        res = run_startup(repeats=1 if quick else repeats, cold_repeats=cold_repeats, cases=cases)
+        from ..provenance import provenance
+
+        res = provenance(**res)
+        save("startup", res)
+        lines += ["", "cold and warm start per method:", *text(res), f"-> {paths['startup']}"]
+        if not as_json:
+            click.echo("\n".join(lines))
+            lines = []
+    if "scaling" in sections:
+        from .scaling import ENGINES, SIZES, plot, run_scaling, text
+
+        kw = dict(sizes=SIZES[:4], target=10 ** 6) if quick else {}
+        engines = tuple(e for e in ENGINES if not (no_c and e == "c_fast"))
+        res = run_scaling(repeats=max(1, min(repeats, 3)), engines=engines, **kw)
+        save("scaling", res)
+        plot(res, paths["scaling_png"])
+        lines += ["", "cost vs N_p (Ob1 bootstrap, float64):", *text(res),
+                  f"-> {paths['scaling']}, {paths['scaling_png']}"]
+    if as_json:
+        click.echo(to_json(results))
+    elif lines:
+        click.echo("\n".join(lines))

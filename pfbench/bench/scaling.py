@@ -1,0 +1,196 @@
+"""``pfbench bench --scaling``: how the cost per particle-step grows with N_p.
+
+Ob1 bootstrap ([Embedded] Alg. 1, systematic resampling, float64) at N_p = 10^2 ... 10^7 (decades)
+for four engines: numba on 1 thread, numba on all cores, NumPy, and the C reference with the fast
+RNG (:mod:`pfbench.bench.c_reference`). Each size runs M = max(``min_steps``, round(target / N_p))
+steps, so every run does about ``target`` particle-steps. A size whose estimated memory
+(:func:`pfbench.resources.filter_memory`; for C three particle arrays) does not fit what this
+process may use (:func:`pfbench.resources.memory_limits`, :data:`~pfbench.resources.USABLE_FRACTION`
+of the tightest limit) is skipped, and the output says what limits the top: the range asked, or
+memory (with the limit and the largest N_p that would fit).
+"""
+from __future__ import annotations
+
+import sys
+
+ENGINES = {"numba_1t": "numba, 1 thread", "numba_all": "numba, all threads", "numpy": "NumPy",
+           "c_fast": "C, fast RNG"}
+SIZES = tuple(10 ** k for k in range(2, 8))
+TARGET_PARTICLE_STEPS = 10 ** 7
+MIN_STEPS = 5
+
+
+def _pow10(n: int) -> str:
+    """``10^k`` when ``n`` is a power of ten, else ``n``."""
+    k = len(str(n)) - 1
+    return f"10^{k}" if n == 10 ** k else str(n)
+
+
+def plan(sizes=SIZES, target: int = TARGET_PARTICLE_STEPS, min_steps: int = MIN_STEPS) -> list[tuple[int, int]]:
+    """``[(N_p, M)]`` with M = max(min_steps, round(target / N_p))."""
+    return [(int(n), max(int(min_steps), int(round(target / n)))) for n in sizes]
+
+
+def _budget():
+    from ..resources import USABLE_FRACTION, memory_limits
+
+    lims = memory_limits()
+    if not lims:
+        return None, "no memory limit found"
+    lim = min(lims, key=lambda L: L.free)
+    return int(lim.free * USABLE_FRACTION), lim.source
+
+
+def _need(model, engine: str, n: int, m: int) -> int:
+    from ..resources import filter_memory
+    from .c_reference import memory_bytes
+
+    if engine == "c_fast":
+        return memory_bytes(m, n)
+    backend = "numpy" if engine == "numpy" else "numba"
+    return filter_memory(model, "bootstrap", n_steps=m, backend=backend).bytes(n)
+
+
+def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STEPS,
+                min_steps: int = MIN_STEPS, engines=tuple(ENGINES), progress: bool = True) -> dict:
+    """Time every engine at every size; returns the table, the top's limit and the ratios."""
+    from tqdm.auto import tqdm
+
+    from .. import models
+    from ..errors import InputError
+    from ..provenance import provenance
+    from ..resources import filter_memory, fmt_bytes
+    from . import c_reference
+    from .report import check
+    from .timing import filter_ns
+
+    model = models.get("ob1")
+    budget, source = _budget()
+    jobs = plan(sizes, target, min_steps)
+    rows = []
+    c_note = None
+    bar = tqdm(total=len(jobs) * len(engines), desc="bench --scaling", disable=not progress,
+               file=sys.stderr, leave=False)
+    for n, m in jobs:
+        traj = None
+        for eng in engines:
+            bar.set_postfix_str(f"N_p={_pow10(n)} {eng}")
+            row = {"particles": n, "steps": m, "engine": eng, "label": ENGINES[eng],
+                   "ns_per_particle_step": None}
+            need = _need(model, eng, n, m)
+            row["memory_need_bytes"] = need
+            if budget is not None and need > budget:
+                row["skipped"] = (f"memory: needs about {fmt_bytes(need)}, a run may plan on "
+                                  f"{fmt_bytes(budget)} ({source})")
+            elif eng == "c_fast":
+                if c_note is None:
+                    try:
+                        r = c_reference.filter_ns("fast", m, n, repeats)
+                        row["ns_per_particle_step"] = r["ns_per_particle_step"]
+                        row["rng"] = r["rng"]
+                    except c_reference.CUnavailable as exc:
+                        c_note = str(exc)
+                if c_note is not None:
+                    row["skipped"] = c_note
+            else:
+                if traj is None:
+                    traj = model.simulate(m, seed=1)
+                try:
+                    if eng == "numpy":
+                        row["ns_per_particle_step"] = filter_ns(model, traj, n, "numpy", "float64",
+                                                                max(1, repeats))
+                    else:
+                        row["ns_per_particle_step"] = filter_ns(
+                            model, traj, n, "numba", "float64", repeats,
+                            n_threads=1 if eng == "numba_1t" else None)
+                except InputError as exc:  # run_filter's own memory check refused it
+                    row["skipped"] = f"refused: {exc}"
+            rows.append(row)
+            bar.update()
+    bar.close()
+
+    largest = {e: max((r["particles"] for r in rows if r["engine"] == e and r["ns_per_particle_step"] is not None),
+                      default=None) for e in engines}
+    skipped_mem = [r for r in rows if str(r.get("skipped", "")).startswith(("memory", "refused"))]
+    if skipped_mem:
+        first = skipped_mem[0]
+        why = first["skipped"].split(": ", 1)[-1]
+        limited = f"memory: from N_p = {first['particles']} on ({first['label']}): {why}"
+    else:
+        fits = (filter_memory(model, "bootstrap", n_steps=min_steps, backend="numpy").largest(budget)
+                if budget is not None else None)
+        limited = (f"the sizes asked (largest N_p = {max(n for n, _ in jobs)}); memory would allow the "
+                   f"NumPy backend up to about N_p = {fits:.2g} ({source})" if fits is not None
+                   else f"the sizes asked (largest N_p = {max(n for n, _ in jobs)})")
+    by = {(r["engine"], r["particles"]): r["ns_per_particle_step"] for r in rows}
+
+    def ratio(a, b):
+        return a / b if a is not None and b is not None and b > 0 else None
+
+    growth = ratio(by.get(("numba_1t", 10 ** 6)), by.get(("numba_1t", 10 ** 3)))
+    speedup = {n: ratio(by.get(("numba_1t", n)), by.get(("numba_all", n))) for n, _ in jobs}
+    targets = [check("ns_1e6_over_1e3", growth),
+               check("threads_speedup_1e6", speedup.get(10 ** 6)),
+               check("threads_speedup_1e5", speedup.get(10 ** 5))]
+    return provenance(kind="bench_scaling", repeats=repeats, target_particle_steps=target,
+                      min_steps=min_steps, engines={e: ENGINES[e] for e in engines}, rows=rows,
+                      largest_particles_run=largest, top_limited_by=limited,
+                      memory_budget_bytes=budget, memory_budget_source=source,
+                      numba_1t_ns_1e6_over_1e3=growth,
+                      threads_speedup={str(n): s for n, s in speedup.items()},
+                      c_note=c_note, targets=targets)
+
+
+def plot(res: dict, path) -> None:
+    """ns per particle-step vs N_p (log-log), one line per engine, to ``path`` (PNG, atomic)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from ..io import write_figure
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for eng, label in res["engines"].items():
+        pts = [(r["particles"], r["ns_per_particle_step"]) for r in res["rows"]
+               if r["engine"] == eng and r["ns_per_particle_step"] is not None]
+        if pts:
+            ax.plot(*zip(*pts), marker="o", label=label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("N_p (particles)")
+    ax.set_ylabel("ns per particle-step")
+    ax.set_title("Ob1 bootstrap, float64: cost per particle-step vs N_p")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    write_figure(path, fig)
+
+
+def text(res: dict) -> list[str]:
+    """The table and ratios as printed lines."""
+    from .report import fmt
+
+    engines = list(res["engines"])
+    sizes = sorted({r["particles"] for r in res["rows"]})
+    by = {(r["engine"], r["particles"]): r for r in res["rows"]}
+    out = [f"{'N_p':>9} {'M':>7} " + " ".join(f"{res['engines'][e]:>19}" for e in engines)]
+    for n in sizes:
+        cells = []
+        for e in engines:
+            r = by.get((e, n))
+            v = None if r is None else r["ns_per_particle_step"]
+            cells.append(f"{v:>19.1f}" if v is not None else f"{'skipped':>19}")
+        m = next(r["steps"] for r in res["rows"] if r["particles"] == n)
+        out.append(f"{n:>9} {m:>7} " + " ".join(cells))
+    out.append("(ns per particle-step, median of the repeats; M chosen for about "
+               f"{_pow10(res['target_particle_steps'])} particle-steps per run, at least {res['min_steps']} steps)")
+    if res.get("c_note"):
+        out.append(f"C: {res['c_note']}")
+    for r in res["rows"]:
+        if r.get("skipped") and r["engine"] != "c_fast":
+            out.append(f"skipped {r['label']} at N_p = {r['particles']}: {r['skipped']}")
+    out.append(f"top of the range limited by: {res['top_limited_by']}")
+    sp = ", ".join(f"N_p={_pow10(int(n))}: {v:.2f}x" for n, v in res["threads_speedup"].items() if v is not None)
+    out.append(f"numba all threads vs 1 thread: {sp}")
+    out.extend(fmt(t) for t in res["targets"])
+    return out
