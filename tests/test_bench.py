@@ -30,6 +30,16 @@ def test_rows_cover_backends_and_dtypes(res):
         assert all(v > 0 for v in f["breakdown_ns"].values())
 
 
+def test_kernel_parts_are_timed_and_reported(res):
+    """Each part of the particle kernel is timed (positive, finite) and the unaccounted rest is the
+    whole filter minus the three passes. Catches a part left out of the sum or of the printed line."""
+    d = res["kernel_parts"]
+    for k in ("normals", "model", "pass_a", "exp", "pass_b", "resample", "filter"):
+        assert math.isfinite(d[k]) and d[k] > 0, k
+    assert d["rest"] == pytest.approx(d["filter"] - d["pass_a"] - d["pass_b"] - d["resample"])
+    assert any(line.startswith("kernel parts") and "resampling + gather" in line for line in main_text(res))
+
+
 def test_ratios_are_computed_from_the_same_run(res):
     """Catches a ratio computed from the wrong pair of timings (or typed in)."""
     for r in res["rows"]:

@@ -9,7 +9,8 @@ Sections (each writes its JSON into the directory of ``--out``, default ``result
   - the C reference in the same run (:mod:`pfbench.bench.c_reference`): the project's pf_ob1.c
     built for this host at -O3 -march=native, once with its own libc RNG and once with a fast RNG;
   - the irreducible-work floor (1 normal + 1 exp per particle-step) and its breakdown
-    (:mod:`pfbench.bench.floor`);
+    (:mod:`pfbench.bench.floor`), and each part of the particle kernel timed alone
+    (:mod:`pfbench.bench.passes`);
   - numba on all cores vs 1 thread at N_p = 10^5 and 10^6;
   - MultiPDF ([MultiPDF] Alg. 2), N_f = 2: 1 thread vs all cores;
   - the PMSM SMC step with the optimal proposal ([Thesis] §4.2.1, 60 particles) against the
@@ -62,7 +63,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     model = models.get("ob1")
     configs = QUICK_CONFIGS if quick else CONFIGS
     thread_cfgs = QUICK_THREAD_CONFIGS if quick else THREAD_CONFIGS
-    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1
+    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1
     bar = tqdm(total=n_jobs, desc="bench", disable=not progress, file=sys.stderr, leave=False)
     rows, floors, c_rows = [], [], []
     c_note = None if with_c else "not run: --no-c"
@@ -126,6 +127,11 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     pmsm["margin_x"] = pmsm["period_us"] / max(pmsm["us_per_step_mean"], pmsm["us_per_step_max"])
     bar.update()
     key, big = configs[0], configs[-1]
+    bar.set_postfix_str("kernel parts")
+    from .passes import passes_ns
+
+    parts = passes_ns(key[1], key[0], max(3, repeats))
+    bar.update()
     bar.set_postfix_str("particles library")
     part = particles_ns(key[0], key[1], max(1, repeats // 2)) if with_particles else None
     bar.update()
@@ -133,7 +139,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
 
     s, targets = summarize(rows, floors, c_rows, threads, part, key, big)
     return provenance(kind="bench", repeats=repeats, quick=quick, rows=rows, floors=floors, c_rows=c_rows,
-                      c_note=c_note, threads=threads, multipdf=multipdf, pmsm_smc=pmsm,
+                      c_note=c_note, threads=threads, multipdf=multipdf, pmsm_smc=pmsm, kernel_parts=parts,
                       particles_library=part, summary=s, targets=targets)
 
 
@@ -240,6 +246,10 @@ def main_text(res: dict) -> list[str]:
                f"{b['exp']:.1f} (parts timed alone); the other {rest:.1f} ns are the rest of the step "
                f"(transition, likelihood arithmetic, weight normalisation, moments, resampling); one pass "
                f"over the particles costs {b['memory_pass']:.2f} ns at this N_p")
+    if res.get("kernel_parts"):
+        from .passes import passes_text
+
+        out.append(passes_text(res["kernel_parts"]))
     out.extend(fmt(t) for t in res["targets"])
     return out
 
