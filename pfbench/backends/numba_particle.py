@@ -135,7 +135,10 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
         e = min(s + _TILE, i1)
         k = e - s
         if first:
-            noise = _np.zeros((k, n_noise))
+            noise = _np.empty((k, n_noise))
+            for i in range(k):
+                for c in range(n_noise):
+                    noise[i, c] = 0.0
         else:
             noise = _as64(_normals(brng, k, n_noise, xs))
         xn = _transition(_as64(xs[s:e]), ut, t, noise, p)
@@ -278,22 +281,31 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     nb = bounds.shape[0] - 1
     logn = _np.log(n)
     mlogn = -logn
-    lw = _np.full((G, n), mlogn)
-    flat = _np.ones(G, _np.bool_)
+    # np.empty + loops rather than np.zeros/full/ones: each array constructor is another overload
+    # to compile (0.1-0.3 s of a cold start each)
+    lw = _np.empty((G, n))
+    flat = _np.empty(G, _np.bool_)
+    cur = _np.empty(G, _np.int64)
+    for g in range(G):
+        flat[g] = True
+        cur[g] = 0
+        for i in range(n):
+            lw[g, i] = mlogn
     xs = _np.empty((2, G, n, n_x), x.dtype)
-    cur = _np.zeros(G, _np.int64)
     wu = _np.empty(n)
     cdf = _np.empty(n)
     la = _np.empty(n)
-    lam = _np.zeros(n)
+    lam = _np.empty(n)
     lam_all = _np.empty(n)
+    for i in range(n):
+        lam[i] = 0.0
     idx = _np.empty(n, _np.int64)
     bmax = _np.empty(nb)
     bsum = _np.empty(nb)
     bs2 = _np.empty(nb)
+    off = _np.empty(nb)
     bsx = _np.empty((nb, n_x))
     bsxx = _np.empty((nb, n_x))
-    off = _np.zeros(nb)
     ub = _np.empty(1)
     for g in range(G):
         x0 = _initial(rng, n, p)
