@@ -211,13 +211,16 @@ def warm_up(model, p, y, u, dtype, scheme=0, parallel: bool = False) -> None:
 
 
 def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess, inc, resampled,
-              degen, hist_x=None, hist_w=None, *, brngs=None, n_threads: int | None = 1, block: int | None = None) -> None:
+              degen, hist_x=None, hist_w=None, *, brngs=None, n_threads: int | None = 1,
+              block: int | None = None) -> None:
     """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL).
 
-    ``brngs``: the stream-block generators (:func:`pfbench.backends.numpy_backend.block_streams`; None: ``[rng]``, one block);
-    ``block``: the stream-block size (default :data:`pfbench.backends.numpy_backend.BLOCK`). With more than one
-    block and ``n_threads`` != 1 the block loops run on ``n_threads`` numba threads (None: all);
-    results do not depend on the thread count.
+    ``brngs``: the stream-block generators (:func:`pfbench.backends.numpy_backend.block_streams`;
+    None: ``[rng]``, one block); ``block``: the largest stream block (default
+    :data:`pfbench.backends.numpy_backend.BLOCK`; the layout is
+    :func:`~pfbench.backends.numpy_backend.block_bounds`). With more than one block and
+    ``n_threads`` != 1 the block loops run on ``n_threads`` numba threads (None: all); results do
+    not depend on the thread count.
     """
     import warnings
 
