@@ -64,7 +64,18 @@ def host_info() -> dict:
         "machine": platform.machine(),
         "system": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
+        "load_average": load_average(),
     }
+
+
+def load_average() -> list[float] | None:
+    """The system's 1-, 5- and 15-minute load averages when the record is written (None where the
+    OS has none): timings, and the timing claims decided from them, are only as good as the machine
+    was quiet."""
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except (AttributeError, OSError):  # pragma: no cover - not on this OS
+        return None
 
 
 def provenance(**extra) -> dict:

@@ -271,9 +271,12 @@ def write_report(out_root: str | Path = "results", compare: str | Path | None = 
             flag = " (DAMAGED: see below)" if r.get("damaged") else ""
             lines.append(f"### `{r['recipe']}`: {r.get('title', '')}{flag}")
             lines.append("")
+            load = (r.get("host") or {}).get("load_average")
+            busy = (f", load average {load[0]:g}/{load[1]:g}/{load[2]:g} (1/5/15 min) on "
+                    f"{(r.get('host') or {}).get('cores')} cores" if isinstance(load, list) and len(load) == 3 else "")
             lines.append(f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
                          f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, "
-                         f"{r.get('created_utc')}")
+                         f"{r.get('created_utc')}{busy}")
             lines.append("")
             claims = [c for c in r.get("claims") or [] if isinstance(c, dict)]
             if claims:

@@ -45,6 +45,16 @@ def test_report_opens_with_the_scorecard_and_shows_figures_inline(results):
     assert "**agree**" in text and "95 % t-interval" in text
 
 
+def test_each_result_says_how_busy_the_machine_was(results):
+    """Timing claims depend on the load: every record keeps the load averages when it was written
+    and the report prints them beside the recipe. Catches the load not recorded or not shown."""
+    rec = report.check_results(results)[0][0]
+    load = rec["host"]["load_average"]
+    assert len(load) == 3 and all(v >= 0 for v in load)
+    path, _ = report.write_report(results)
+    assert f"load average {load[0]:g}/{load[1]:g}/{load[2]:g} (1/5/15 min)" in path.read_text()
+
+
 def test_report_json_is_the_same_data(results):
     r = CliRunner().invoke(main, ["report", "--out", str(results), "--json"])
     data = json.loads(r.stdout.splitlines()[0], parse_constant=lambda c: pytest.fail(c))
