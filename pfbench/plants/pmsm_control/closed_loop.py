@@ -39,7 +39,7 @@ from ...procs import process_pool
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
-from .smc import ESS_FRACTION, guided_init, point_code, scheme_code, smc_model, smc_update
+from .smc import ESS_FRACTION, guided_init, point_code, scheme_code, smc_model, smc_update, smc_workspace
 
 CONTROLLERS = {"pi": 0, "cc": 1, "cec": 2}
 
@@ -48,15 +48,7 @@ def _closed_loop_smc_py(mp, p, scheme, threshold, cp, consts, S, w_ref, x0, n, p
                         rng_plant, rng_filter, rng_point, xs, ys, us, est, spread, ess, res,
                         store, hist_om, hist_th, hist_w):
     M = w_ref.shape[0]
-    particles = np.empty((n, 2))
-    om = np.empty(n)
-    th = np.empty(n)
-    lw = np.empty(n)
-    wn = np.empty(n)
-    mean = np.empty(2)
-    var = np.empty(2)
-    ured = np.empty(4)
-    pe = np.empty(5)
+    particles, lw, wn, om, th, pe, mean, var, ured = smc_workspace(n)
     integ = np.zeros(3)
     x = np.empty(4)
     xn = np.empty(4)

@@ -53,7 +53,7 @@ guided_step = _GUIDED.step
 N_NOISE = _GUIDED.n_noise
 
 __all__ = ["POINT_MODES", "ESS_FRACTION", "Q_THETA_FILTER", "smc_model", "point_code", "scheme_code",
-           "guided_init", "guided_step", "smc_update", "weights_from_log", "point_estimate", "run_smc",
+           "guided_init", "guided_step", "smc_update", "smc_workspace", "weights_from_log", "point_estimate", "run_smc",
            "shift_inputs", "step_time_us"]
 
 
@@ -190,6 +190,14 @@ def split_particles(x, om, th):
 
 
 @register_jitable
+def smc_workspace(n):
+    """The state and scratch arrays of :func:`smc_update` for ``n`` particles:
+    (x (n, 2), lw, wn, om, th (n,), pe (5,), mean, var (2,), ured (4,))."""
+    return (np.empty((n, 2)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(5),
+            np.empty(2), np.empty(2), np.empty(4))
+
+
+@register_jitable
 def smc_update(p, rng, rng_point, x, lw, wn, om, th, pe, mean, var, ured, t, y_t, y_prev, u_prev,
                scheme, threshold, mode):
     """One step of the thesis SMC at step t, shared by the offline filter and the closed loop: the
@@ -214,15 +222,7 @@ def smc_update(p, rng, rng_point, x, lw, wn, om, th, pe, mean, var, ured, t, y_t
 
 def _offline_py(p, y, u, n, scheme, threshold, mode, rng, rng_point, est, ess, inc, res, spread):
     """Open-loop SMC of measured currents ``y`` (M, 2) with inputs ``u`` (M, 2) (u[t]: t -> t+1)."""
-    x = np.empty((n, 2))
-    lw = np.empty(n)
-    wn = np.empty(n)
-    om = np.empty(n)
-    th = np.empty(n)
-    pe = np.empty(5)
-    mean = np.empty(2)
-    var = np.empty(2)
-    ured = np.empty(4)
+    x, lw, wn, om, th, pe, mean, var, ured = smc_workspace(n)
     guided_init(p, rng, x, lw)
     for t in range(y.shape[0]):
         k = max(t - 1, 0)
