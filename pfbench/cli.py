@@ -156,7 +156,10 @@ def _set_debug(ctx, param, value):
 @click.version_option(package_name="pfbench", prog_name="pfbench")
 @click.option("--debug", is_flag=True, expose_value=False, is_eager=True, callback=_set_debug,
               help=f"Show the traceback of user errors too (or set {DEBUG_ENV}=1).")
-def main():
+@click.option("--models", "model_files", multiple=True, metavar="FILE.py",
+              help="Import your own model file(s) (classes decorated with @register) so their "
+                   "names work in every --model (repeatable; or set PFBENCH_MODELS).")
+def main(model_files):
     """pfbench: particle and Kalman filter benchmarks and paper reproductions.
 
     \b
@@ -166,7 +169,16 @@ def main():
       pfbench run --model ob1 --method bootstrap --particles 1000 --steps 1000
       pfbench run --model ob3:v4 --method mpf --particles 200
       pfbench info                      # CPU, cores, numba threading layer, versions
+      pfbench --models my_model.py mcu emulate --model my_growth
     """
+    if model_files:
+        from . import models
+
+        models.load_files(model_files)
+        # worker processes (sweeps, the MCU compiler) find the files through the environment
+        os.environ[models.MODELS_ENV] = os.pathsep.join(
+            [os.path.abspath(f) for f in model_files]
+            + [p for p in os.environ.get(models.MODELS_ENV, "").split(os.pathsep) if p])
 
 
 # --------------------------------------------------------------------------- run

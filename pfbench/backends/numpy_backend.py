@@ -153,8 +153,12 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
     scheme = resampling.Scheme(scheme)
     G, n, n_x = x.shape
-    blocks = _blocks(n, int(block or BLOCK))
-    brngs = [rng] if brngs is None else list(brngs)
+    if brngs is None:  # no stream blocks given: the whole population is one block
+        blocks, brngs = [slice(0, n)], [rng]
+    else:
+        blocks, brngs = _blocks(n, int(block or BLOCK)), list(brngs)
+        if len(brngs) != len(blocks):
+            raise ValueError(f"{len(brngs)} block streams for {len(blocks)} blocks")  # a caller bug
     ptype = x.dtype  # float32 particles: float32 normals and storage, model arithmetic in float64
     n_noise = model.n_noise
     logn = np.log(n)

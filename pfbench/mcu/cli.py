@@ -1,4 +1,4 @@
-"""``pfbench mcu ...``: Cortex-M4 cost model commands."""
+"""``pfbench mcu ...``: Cortex-M cost model commands (estimate, fit, calibrate)."""
 from __future__ import annotations
 
 import math
@@ -13,7 +13,7 @@ from ..resampling import SCHEMES
 
 @click.group()
 def mcu():
-    """Cortex-M4 (STM32F4) time, energy and memory predictions."""
+    """Cortex-M time, energy and memory predictions (M0+, M3, M4F, M7, M33)."""
 
 
 def _positive_int(name):
@@ -48,19 +48,29 @@ def _positive_float(name, allow_zero=False):
 @click.option("--filters", type=int, default=1, show_default=True, callback=_positive_int("filters"),
               help="MultiPDF sub-filters N_f.")
 @click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
-@click.option("--clock-mhz", type=float, default=168.0, show_default=True, callback=_positive_float("clock-mhz"))
+@click.option("--core", "core_name", default="m4", show_default=True,
+              help="Core: m0plus, m3, m4 (the paper's STM32F407), m7, m33.")
+@click.option("--clock-mhz", type=float, default=None, callback=_positive_float("clock-mhz"),
+              help="Core clock [default: the core's typical chip, 168 MHz for the M4].")
 @click.option("--cycles", "cycles_file", type=click.Path(dir_okay=False), default=None,
-              help="Cycle table JSON (default: built-in Cortex-M4F table).")
-@click.option("--board-power-w", type=float, default=1.39, show_default=True,
-              callback=_positive_float("board-power-w", allow_zero=True), help="Board power (Table 3).")
-@click.option("--no-calibration", is_flag=True, help="Raw instruction-table cycles, no Table-2 efficiency.")
+              help="Cycle table JSON (default: the core's built-in table).")
+@click.option("--board-power-w", type=float, default=None,
+              callback=_positive_float("board-power-w", allow_zero=True),
+              help="Board power for the board energy figure [default: 1.39 W on the M4 (Table 3), none else].")
+@click.option("--no-calibration", is_flag=True, help="Raw instruction-table cycles, no Table-2 efficiency "
+              "(= --basis table).")
+@click.option("--basis", type=click.Choice(["board", "code", "table"]), default=None,
+              help="What the predicted time is: board = the paper's board running hand-written C "
+                   "([Embedded] Table-2 efficiency; default); code = the code pfbench compiles for "
+                   "the MCU (harness + your model's own code, zero wait states: what "
+                   "`mcu emulate --model` checks); table = instruction-table cycles only.")
 @click.option("--no-history", is_flag=True, help="Memory check without the per-step history arrays.")
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE",
               help="Model parameter (repeatable; JSON-typed, as `pfbench run --param`).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def estimate(model_name, steps, particles, precision, method, filters, resampling, clock_mhz, cycles_file,
-             board_power_w, no_calibration, no_history, params, as_json):
-    """Predict STM32F4 run time, energy and RAM of a particle filter."""
+def estimate(model_name, steps, particles, precision, method, filters, resampling, core_name, clock_mhz,
+             cycles_file, board_power_w, no_calibration, basis, no_history, params, as_json):
+    """Predict Cortex-M run time, energy and RAM of a particle filter."""
     from .. import models
     from .costmodel import predict
 
@@ -70,10 +80,12 @@ def estimate(model_name, steps, particles, precision, method, filters, resamplin
     if filters > particles:
         raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
                                  param_hint="'--filters'")
+    if no_calibration and basis not in (None, "table"):
+        raise click.BadParameter(f"--no-calibration is --basis table, not {basis}", param_hint="'--basis'")
     r = predict(name, steps, particles, precision, method=method, n_filters=filters,
-                clock_mhz=clock_mhz, cycles=cycles_file, board_power_w=board_power_w,
+                clock_mhz=clock_mhz, core=core_name, cycles=cycles_file, board_power_w=board_power_w,
                 calibrated=not no_calibration, resampling=resampling, history=not no_history,
-                model_params=model_params)
+                model_params=model_params, basis=basis)
     if as_json:
         click.echo(to_json(r, indent=2, default=float))
         return
@@ -84,14 +96,25 @@ def _format(r: dict) -> str:
     mem = r["memory"]
     lines = [
         f"{r['model']} {r['method']}" + (f" (N_f={r['n_filters']})" if r["method"] == "multipdf" else "")
-        + f", M={r['n_steps']} steps, N_p={r['n_particles']} particles, {r['precision']} @ {r['clock_mhz']:g} MHz",
-        f"predicted time : {r['predicted_ms']:,.1f} ms"
-        + (f"  (instruction-table {r['raw_ms']:,.1f} ms x efficiency {r['efficiency']:.3f} fitted on [Embedded] Table 2)"
-           if r["calibrated"] else "  (uncalibrated)"),
+        + f", M={r['n_steps']} steps, N_p={r['n_particles']} particles, {r['precision']} on "
+        f"{r['core_name']} ({r['chip']}) @ {r['clock_mhz']:g} MHz",
+        f"predicted time : {r['predicted_ms']:,.1f} ms ({r['step_us']:,.1f} us per step)"
+        + (f"  (instruction-table {r['raw_ms']:,.1f} ms x efficiency {r['efficiency']:.3f}: {r['efficiency_basis']})"
+           if r["calibrated"] else f"  ({r['efficiency_basis']})" if r.get("basis") == "code"
+           else "  (uncalibrated)"),
         f"cycles/particle-step: {r['cycles_per_particle_step']:,.0f}",
-        f"energy         : {r['energy_wh']:.3g} Wh at {r['board_power_w']:g} W board power",
+        f"layers         : board {r['board_ms']:,.1f} ms (the paper's hand-written C, [Embedded] Table-2 "
+        f"efficiency) | code {r['code_ms']:,.1f} ms (pfbench's compiled harness + model, zero wait "
+        f"states; checked by `pfbench mcu emulate --model`)",
+        f"energy (MCU)   : {r['energy_mcu_wh']:.3g} Wh, {r['energy_per_step_uj']:.3g} uJ per step "
+        f"({r['mcu_current_ma']:.3g} mA x {r['mcu_voltage_v']:g} V)",
+    ]
+    if r["energy_board_wh"] is not None:
+        lines.append(f"energy (board) : {r['energy_board_wh']:.3g} Wh at {r['board_power_w']:g} W board power "
+                     "([Embedded] Table 3 reports this one)")
+    lines += [
         f"RAM            : {mem['bytes'] / 1024:.1f} kB of {mem['usable_bytes'] / 1024:.0f} kB usable "
-        f"(192 kB STM32F407); largest N_p that fits: {mem['max_particles']}",
+        f"({mem['ram_bytes'] / 1024:.0f} kB {mem['chip']}); largest N_p that fits: {mem['max_particles']}",
         "operation breakdown (cycles share; normals expanded into their generator's operations):",
     ]
     ps = r["n_steps"] * r["n_particles"]
@@ -101,6 +124,52 @@ def _format(r: dict) -> str:
         lines.append(f"  {op:<11}{per_ps.get(op, 0.0):>18.3f}{r['cycles_each'][op]:>12g}{share:>8.1%}")
     lines.append("counted ops: " + ", ".join(f"{k}={v:,}" for k, v in r["ops"].items()) + f"  (for {ps:,} particle-steps)")
     return "\n".join(lines)
+
+
+@mcu.command()
+@click.option("--model", "model_name", default="ob1", show_default=True,
+              help="Registered model, optionally with a variant (ob3:v4).")
+@click.option("--steps", type=int, default=1000, show_default=True, callback=_positive_int("steps"),
+              help="Run length M (per-step cost is averaged over min(M, 100) steps; RAM with --history).")
+@click.option("--period-us", type=float, required=True, callback=_positive_float("period-us"),
+              help="Sampling period T in microseconds (1000 = 1 kHz).")
+@click.option("--method", type=click.Choice(PARTICLE_METHODS), default="bootstrap", show_default=True)
+@click.option("--filters", type=int, default=1, show_default=True, callback=_positive_int("filters"),
+              help="MultiPDF sub-filters N_f.")
+@click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
+@click.option("--core", "core_names", multiple=True, help="Restrict to these cores (repeatable; default all five).")
+@click.option("--precision", "precisions", multiple=True, type=click.Choice(["float", "double"]),
+              help="Restrict to a precision (repeatable; default both).")
+@click.option("--history", is_flag=True, help="Count the M-step history arrays in the RAM check.")
+@click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help="Model parameter (repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def fit(model_name, steps, period_us, method, filters, resampling, core_names, precisions, history, params,
+        as_json):
+    """Largest N_p per core and precision that meets the sampling period and fits in RAM."""
+    from .. import models
+    from . import cores as _cores
+    from .costmodel import fit as _fit
+
+    name, model_params = models.parse_spec(model_name, parse_key_values(params, "--param"))
+    if method != "multipdf" and filters != 1:
+        raise click.BadParameter(f"--filters {filters} needs --method multipdf", param_hint="'--filters'")
+    keys = [_cores.get(c).key for c in core_names] or None
+    r = _fit(name, steps, period_us, method=method, n_filters=filters, resampling=resampling, cores=keys,
+             precisions=tuple(precisions) or ("float", "double"), history=history, model_params=model_params)
+    if as_json:
+        click.echo(to_json(r, indent=2, default=float))
+        return
+    click.echo(f"{r['model']} {r['method']}: largest N_p per step period {r['period_us']:g} us "
+               f"({r['rate_hz']:g} Hz){' with M-step history in RAM' if r['history'] else ''}")
+    click.echo(f"{'core':<11}{'chip':<13}{'MHz':>5}{'RAM kB':>8} {'prec':<7}{'N_p':>8} {'limit':<6}"
+               f"{'step us':>9}{'uJ/step':>9}")
+    for x in r["rows"]:
+        step = f"{x['step_us']:.1f}" if x["step_us"] is not None else "-"
+        e = f"{x['energy_per_step_uj']:.3g}" if x["energy_per_step_uj"] is not None else "-"
+        click.echo(f"{x['core_name']:<11}{x['chip']:<13}{x['clock_mhz']:>5g}{x['ram_kb']:>8g} {x['precision']:<7}"
+                   f"{x['max_particles']:>8} {x['binding']:<6}{step:>9}{e:>9}")
+    for n in r["notes"]:
+        click.echo("note: " + n)
 
 
 @mcu.command()

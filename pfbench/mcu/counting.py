@@ -16,7 +16,8 @@ Counting conventions (what a C port on a Cortex-M4 would execute):
   a scalar expression (``8 cos(1.2 t)``) costs once per step, i.e. it is loop-invariant and
   hoisted out of the particle loop (what ``-O2``/``-Ofast`` does with a pure function);
 * ``x ** 2`` -> 1 mul, ``x ** 0.5`` -> sqrt, ``x ** k`` (small integer k) -> k-1 mul, other
-  powers -> ``pow``; ``sin``/``tan``/``arctan`` are counted as ``cos`` (same libm cost class);
+  powers -> ``pow``; ``np.cbrt`` -> ``cbrt`` (libm ``cbrt``/``cbrtf``, about half a ``pow``);
+  ``sin``/``tan``/``arctan`` are counted as ``cos`` (same libm cost class);
 * reductions and scans of n elements cost n-1 operations (``max`` -> cmp, ``cumsum`` -> add);
   ``a @ b`` of inner length k costs k mul + k-1 add per output element;
 * ``searchsorted`` of sorted positions costs a linear merge, len(cdf) + len(positions) cmp
@@ -31,6 +32,19 @@ Counting conventions (what a C port on a Cortex-M4 would execute):
   by a fused C loop and are not counted as traffic;
 * ``uniform`` / ``normal`` count generator draws; their cost (e.g. Box-Muller) is expanded by
   the cycle table (:mod:`pfbench.mcu.cycles`).
+
+Compiled-code conventions (``count_run(..., code=True)``): what the model's OWN code does
+when numba compiles it for the target and the C harness ``pfbench/mcu/c/pf_model.c`` calls it
+on tiles of :data:`TILE` particles. They apply only inside the model's ``transition`` and
+``log_likelihood`` and add the operation classes of :data:`CODE_OPS` (costed by
+:mod:`pfbench.mcu.costmodel`, not by the cycle tables):
+
+* ``tmp``: every array-valued result (ufunc, reduction along an axis, gather, copy) is
+  materialised in memory by the compiled code: one store + one load per element;
+* ``alloc``: each such array is allocated (and freed) per call, i.e. once per tile of
+  :data:`TILE` particles: ``ceil(N / TILE)`` allocations per array per step;
+* ``mm_load``: a matrix product ``a @ b`` of inner length k runs an element loop that loads
+  both operands: 2 k loads per output element (besides its k mul + k - 1 add).
 
 A run's counts are affine in the number of steps for the methods whose work does not depend on
 the data (bootstrap, MultiPDF, SIS, ASIR with systematic resampling), so :func:`count_run`
@@ -47,15 +61,19 @@ import numpy as np
 from ..errors import InputError, UnsupportedError
 
 #: every operation class the counter produces (the cycle tables must cost each one)
-OPS = ("add", "mul", "div", "div_scalar", "cmp", "sqrt", "exp", "log", "cos", "pow", "cvt", "int",
-       "load", "store", "uniform", "normal")
+OPS = ("add", "mul", "div", "div_scalar", "cmp", "sqrt", "exp", "log", "cos", "pow", "cbrt", "cvt",
+       "int", "load", "store", "uniform", "normal")
+#: operation classes of the compiled-code conventions (``count_run(code=True)``, see above)
+CODE_OPS = ("tmp", "alloc", "mm_load")
+#: particles per model call in the C harness (PF_TILE of pfbench/mcu/c/pf_model.c)
+TILE = 32
 
 _UFUNC_OPS = {
     "add": "add", "subtract": "add", "negative": "add",
     "multiply": "mul", "square": "mul",
     "true_divide": "div", "divide": "div", "reciprocal": "div", "floor_divide": "div",
     "remainder": "div", "fmod": "div",
-    "sqrt": "sqrt", "cbrt": "pow",
+    "sqrt": "sqrt", "cbrt": "cbrt",
     "exp": "exp", "exp2": "exp", "expm1": "exp",
     "log": "log", "log2": "log", "log10": "log", "log1p": "log",
     "cos": "cos", "sin": "cos", "tan": "cos", "arctan": "cos", "arctan2": "cos", "arcsin": "cos",
@@ -95,6 +113,27 @@ def _counter() -> OpCounter | None:
     return getattr(_STATE, "counter", None)
 
 
+def _model_tiles() -> int:
+    """Tiles of the current model call when compiled-code counting is on, else 0."""
+    return getattr(_STATE, "model_tiles", 0)
+
+
+def _count_materialised(cnt, result, sources=()) -> None:
+    """Compiled-code convention: an array result inside a model function is stored and loaded
+    once per element (``tmp``) and allocated once per tile (``alloc``); views cost nothing."""
+    tiles = _model_tiles()
+    if not tiles or cnt is None:
+        return
+    res = result[0] if isinstance(result, tuple) else result
+    if not isinstance(res, np.ndarray) or res.ndim == 0 or res.size <= 1:
+        return
+    for s_ in sources:
+        if isinstance(s_, np.ndarray) and np.shares_memory(res, s_):
+            return
+    cnt.add("tmp", res.size)
+    cnt.add("alloc", tiles)
+
+
 def _is_int(dt) -> bool:
     return np.issubdtype(dt, np.integer) or np.issubdtype(dt, np.bool_)
 
@@ -121,6 +160,8 @@ class CountingArray(np.ndarray):
         result = getattr(ufunc, method)(*raw_in, **kwargs)
         if cnt is not None:
             self._count_ufunc(cnt, ufunc, method, inputs, raw_in, result, out, kwargs.get("axis", 0))
+            if out is None:
+                _count_materialised(cnt, result)
         if out is not None:
             if isinstance(result, tuple):
                 return out
@@ -147,6 +188,8 @@ class CountingArray(np.ndarray):
                 k = a.shape[-1] if a.ndim else 1
                 cnt.add("mul", res_size * k)
                 cnt.add("add", res_size * max(k - 1, 0))
+                if _model_tiles():
+                    cnt.add("mm_load", 2 * res_size * k)
                 return
             op = _UFUNC_OPS.get(name, "add")
             if name == "power":
@@ -189,6 +232,7 @@ class CountingArray(np.ndarray):
         result = func(*raw_args, **raw_kwargs)
         if cnt is not None:
             _count_function(cnt, name, args, raw_args, raw_kwargs, result)
+            _count_materialised(cnt, result, [a for a in raw_args if isinstance(a, np.ndarray)])
         mem = name not in _TEMP_FUNCS
         if isinstance(result, tuple):
             return tuple(_wrap(r, mem=mem) for r in result)
@@ -203,6 +247,7 @@ class CountingArray(np.ndarray):
             if self._mem:
                 cnt.add("load", n)
             cnt.add("store", n)  # a gather materialises a new array
+            _count_materialised(cnt, raw)
             return _wrap(raw, mem=True)
         if np.ndim(raw) == 0:  # one element
             if cnt is not None and self._mem:
@@ -317,6 +362,8 @@ def _count_function(cnt: OpCounter, name: str, args, raw_args, raw_kwargs, resul
         n = max(int(np.size(result)), 1)
         cnt.add("mul", n * k)
         cnt.add("add", n * max(k - 1, 0))
+        if _model_tiles():
+            cnt.add("mm_load", 2 * n * k)
     elif name == "where" and len(raw_args) == 3:
         cnt.add("cmp", int(np.size(result)))
     # shape manipulation (reshape, ravel, transpose, ...) and constructors cost nothing here
@@ -437,7 +484,7 @@ class counting:
 
 
 def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: int,
-                 resampling: str, ess_threshold, seed: int) -> dict[str, int]:
+                 resampling: str, ess_threshold, seed: int, compiled: bool = False) -> dict[str, int]:
     from ..backends import numpy_backend
     from ..filters.inputs import ess_count
     from ..filters.methods import Method
@@ -462,7 +509,7 @@ def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: 
         resampled, degen = np.zeros((G, M), dtype=bool), np.zeros((G, M), dtype=bool)
 
         yc, uc = _wrap(y, mem=True), _wrap(u, mem=True)
-        numpy_backend.run_group(_CountingModel(model), p, rng, yc, uc, x, int(code),
+        numpy_backend.run_group(_CountingModel(model, compiled), p, rng, yc, uc, x, int(code),
                                 int(Scheme.parse(resampling)), thr, est, var, ess, inc, resampled, degen)
     return cnt.as_dict()
 
@@ -471,9 +518,20 @@ class _CountingModel:
     """Delegates to a model but hands ``t`` to its functions as a counted 0-d array, so that
     per-step scalar work (e.g. ``8 cos(1.2 t)``) is counted once per step."""
 
-    def __init__(self, model):
+    def __init__(self, model, code: bool = False):
         self._m = model
         self.n_noise = model.n_noise
+        self._code = bool(code)
+
+    def _in_model(self, fn, x, *args):
+        """Call a model function; with compiled-code counting on, inside a model scope."""
+        if not self._code:
+            return fn(*args)
+        _STATE.model_tiles = -(-int(np.shape(x)[0]) // TILE)
+        try:
+            return fn(*args)
+        finally:
+            _STATE.model_tiles = 0
 
     def kernel_functions(self):
         fns = self._m.kernel_functions()
@@ -482,10 +540,10 @@ class _CountingModel:
             return fns["initial"](rng, n, p)
 
         def transition(x, u, t, noise, p):
-            return fns["transition"](x, u, _scalar_t(t), noise, p)
+            return self._in_model(fns["transition"], x, x, u, _scalar_t(t), noise, p)
 
         def log_likelihood(y, x, u, t, p):
-            return fns["log_likelihood"](y, x, u, _scalar_t(t), p)
+            return self._in_model(fns["log_likelihood"], x, y, x, u, _scalar_t(t), p)
 
         return {"initial": initial, "transition": transition, "log_likelihood": log_likelihood,
                 "observe": fns["observe"]}
@@ -519,14 +577,17 @@ def _validate(model, n_steps, n_particles, method, n_filters, resampling):
 
 def count_run(model, n_steps: int, n_particles: int, *, method: str = "bootstrap",
               n_filters: int = 1, resampling: str = "systematic", ess_threshold=None,
-              seed: int = 0, exact: bool = False, probe_steps: int = 4) -> dict[str, int]:
+              seed: int = 0, exact: bool = False, probe_steps: int = 4,
+              code: bool = False) -> dict[str, int]:
     """Operation counts of a whole filter run (``n_steps`` steps, ``n_particles`` particles).
 
     ``model`` is a :class:`~pfbench.models.base.StateSpaceModel` instance or a registered name.
     Counts are obtained by running the NumPy reference engine on counting arrays. Unless
     ``exact``, only ``probe_steps`` and ``2 * probe_steps`` steps are run and the counts are
     extrapolated affinely in the number of steps (exact for data-independent methods; for
-    ``sir`` the resampling rate of the first steps is assumed).
+    ``sir`` the resampling rate of the first steps is assumed). ``code``: add the
+    compiled-code operation classes :data:`CODE_OPS` of the model's own functions (see the
+    module docstring); the other counts are the same either way.
     """
     from .. import models as _models
 
@@ -536,9 +597,10 @@ def count_run(model, n_steps: int, n_particles: int, *, method: str = "bootstrap
     n_steps, n_particles, n_filters = int(n_steps), int(n_particles), int(n_filters)
     k = int(probe_steps)
     if exact or n_steps <= 2 * k:
-        return _run_counted(model, n_steps, n_particles, method, n_filters, resampling, ess_threshold, seed)
-    a = _run_counted(model, k, n_particles, method, n_filters, resampling, ess_threshold, seed)
-    b = _run_counted(model, 2 * k, n_particles, method, n_filters, resampling, ess_threshold, seed)
+        return _run_counted(model, n_steps, n_particles, method, n_filters, resampling, ess_threshold, seed,
+                            code)
+    a = _run_counted(model, k, n_particles, method, n_filters, resampling, ess_threshold, seed, code)
+    b = _run_counted(model, 2 * k, n_particles, method, n_filters, resampling, ess_threshold, seed, code)
     out = {}
     for op in set(a) | set(b):
         ca, cb = a.get(op, 0), b.get(op, 0)
@@ -547,4 +609,5 @@ def count_run(model, n_steps: int, n_particles: int, *, method: str = "bootstrap
         v = int(round(const + per_step * n_steps))
         if v > 0:
             out[op] = v
-    return {op: out[op] for op in sorted(out, key=lambda o: (OPS.index(o) if o in OPS else 99, o))}
+    order = OPS + CODE_OPS
+    return {op: out[op] for op in sorted(out, key=lambda o: (order.index(o) if o in order else 99, o))}

@@ -1,6 +1,8 @@
-"""Cortex-M4 cycle tables (data, with their source) and cycle arithmetic.
+"""Cortex-M cycle tables (data, with their source) and cycle arithmetic.
 
-The built-in table is ``pfbench/mcu/data/cortex_m4_cycles.json`` (values from
+One table per core (``data/cortex_<core>_cycles.json``, chosen through
+:mod:`pfbench.mcu.cores`; the M0+/M3/M7/M33 ones derived by :mod:`pfbench.mcu.libcost`).
+The default table is ``pfbench/mcu/data/cortex_m4_cycles.json`` (values from
 [Recovered]: FPv4-SP instruction timings for ``float`` with the FPU, and
 libgcc/newlib soft-float call costs for ``double``). A user table has the same layout::
 

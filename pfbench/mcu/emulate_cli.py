@@ -1,5 +1,8 @@
-"""``pfbench mcu emulate``: cross-compile the C filter, count executed Cortex-M4 instructions.
+"""``pfbench mcu emulate``: cross-compile a C filter, count executed Cortex-M4 instructions.
 
+Without ``--model``: the hand-written Ob1 port ``pf_ob1.c`` ([Embedded] Table 2 benchmark).
+With ``--model NAME``: the model's own code (the functions the numba backend compiles),
+compiled for Cortex-M4 and linked into the generic harness ``pf_model.c``.
 Needs the optional toolchain (``make mcu-tools``); without it the command says so in one line.
 """
 from __future__ import annotations
@@ -25,25 +28,44 @@ def _parse_configs(text: str | None):
 
 
 @click.command()
+@click.option("--model", "model_name", default=None, metavar="NAME",
+              help="Run this registered model's OWN compiled code (e.g. ob1, ob3:v4, pmsm) in the "
+                   "generic C harness. Without --model: the hand-written Ob1 port pf_ob1.c "
+                   "(the [Embedded] Table 2 benchmark, object simulated on the MCU).")
+@click.option("--param", "params", multiple=True, metavar="KEY=VALUE",
+              help="Model parameter for --model (repeatable; JSON-typed as `pfbench run --param`).")
 @click.option("--precision", type=click.Choice(["float", "double"]), default="float",
-              show_default=True, help="float = D(O) (FPU, -Ofast); double = D(S) (soft double, -O0).")
-@click.option("--steps", "-M", type=int, default=1000, show_default=True,
-              help="M iterations to predict for.")
-@click.option("--particles", "-N", type=int, default=1000, show_default=True,
-              help="N particles to predict for.")
+              show_default=True, help="float = FPU single precision (-Ofast); double = soft-float "
+                                      "double (-O0; hand port: D(S), --model: M4F hard-float ABI).")
+@click.option("--steps", "-M", type=int, default=None,
+              help="M iterations to predict for [default: 1000; with --model 100].")
+@click.option("--particles", "-N", type=int, default=None,
+              help="N particles to predict for [default: 1000; with --model 500].")
 @click.option("--configs", default=None,
               help="Small MxN configurations to emulate and fit (default depends on precision).")
 @click.option("--opt", default=None, help="Override the -O level of the build (e.g. -O2).")
 @click.option("--clock-mhz", type=float, default=None, help="Core clock (default 168 MHz).")
-@click.option("--seed", type=int, default=1, show_default=True, help="srand() seed in the C code.")
+@click.option("--core", default="m4", show_default=True,
+              help="Cortex-M core (m0plus, m3, m4, m7, m33): with --model the code is compiled "
+                   "for it and timed with its table data/cortex_<core>_timing.json (m7 code with "
+                   "double-precision FPU instructions cannot run in unicorn); the hand port is "
+                   "always the M4F build.")
+@click.option("--seed", type=int, default=1, show_default=True,
+              help="srand() seed in the C code (and the host simulation seed with --model).")
+@click.option("--tile", type=click.IntRange(1, 1024), default=32, show_default=True,
+              help="With --model: particles per model call (PF_TILE); numba's per-call array "
+                   "allocations are spread over a tile, its temporaries are a tile large.")
 @click.option("--json", "as_json", is_flag=True, help="Print the full result as JSON.")
-def emulate(precision, steps, particles, configs, opt, clock_mhz, seed, as_json):
-    """Emulate the C bootstrap filter (Ob1) on a Cortex-M4F and predict STM32F4 time.
+def emulate(model_name, params, precision, steps, particles, configs, opt, clock_mhz, core, seed,
+            tile, as_json):
+    """Emulate a C bootstrap filter on a Cortex-M4F and predict STM32F4 time.
 
-    Builds D(S)/D(O) (cached), runs small (M, N) in the unicorn emulator, counts executed
+    Builds the image (cached), runs small (M, N) in the unicorn emulator, counts executed
     instructions by class and function, converts them to cycles with the Cortex-M4 timing
-    table, fits cost = a + b*M + c*M*N and extrapolates to (--steps, --particles) and to
-    Table 2 of [Embedded].
+    table, fits cost = a + b*M + c*M*N and extrapolates to (--steps, --particles).  Without
+    --model it runs the hand-written Ob1 port and compares with Table 2 of [Embedded]; with
+    --model it runs the model's own compiled code and reports the share of double-precision
+    work, RAM, the tracking error and the analytic cost model's prediction beside it.
     """
     from . import emulate as E
     from . import toolchain
@@ -51,6 +73,20 @@ def emulate(precision, steps, particles, configs, opt, clock_mhz, seed, as_json)
     why = toolchain.missing()
     if why:
         raise PfbenchError("mcu emulate needs the cross toolchain: " + "; ".join(why))
+    if model_name is None and params:
+        raise InputError("--param needs --model")
+    if model_name is not None:
+        from ..options import parse_key_values
+
+        res = E.emulate_model(model_name, precision, steps or 100, particles or 500,
+                              configs=_parse_configs(configs), seed=seed, core=core,
+                              params=parse_key_values(params, "--param"), clock_mhz=clock_mhz,
+                              opt=opt, tile=tile)
+        _print_model(res, as_json)
+        return
+    if core != "m4":
+        raise InputError("--core applies to --model runs; the Ob1 port is timed on the M4")
+    steps, particles = steps or 1000, particles or 1000
     res = E.emulate(precision, steps, particles, configs=_parse_configs(configs),
                     clock_mhz=clock_mhz, seed=seed, opt=opt)
     if as_json:
@@ -89,5 +125,52 @@ def emulate(precision, steps, particles, configs, opt, clock_mhz, seed, as_json)
         tot = res["cycles_per_particle_step"]
         click.echo(f"\n{title}:")
         for name, v in list(d.items())[:10]:
+            click.echo(f"  {name:28s} {v:10.1f}  {100 * v / tot:5.1f}%")
+    click.echo("\nNot seen by the emulator: " + res["unseen"])
+
+
+def _print_model(res: dict, as_json: bool) -> None:
+    if as_json:
+        from ..io import to_json
+
+        click.echo(to_json(res, indent=2, default=float))
+        return
+    m, n = res["steps"], res["particles"]
+    click.echo(f"{res['model']} ({res['precision']}, own compiled code in pf_model.c, tile "
+               f"{res['tile']}) "
+               f"{' '.join(f for f in res['cflags'] if f.startswith(('-mf', '-O')))}  "
+               f"[{res['compiler']}]")
+    click.echo(f"per particle-step: {res['instructions_per_particle_step']:.0f} instructions, "
+               f"{res['cycles_per_particle_step']:.0f} cycles (best-worst "
+               f"{res['cycles_per_particle_step_range'][0]:.0f}-"
+               f"{res['cycles_per_particle_step_range'][1]:.0f}), CPI {res['cpi']:.2f}; model "
+               f"functions {res['model_cycles_per_particle_step']:.0f} cycles")
+    click.echo(f"double-precision work: {100 * res['double_share']:.1f}% of particle-step cycles")
+    click.echo(f"per step: {res['cycles_per_step']:.0f} cycles; fit residual "
+               f"{100 * res['fit_residual_rel']:.2f}%")
+    cm = res.get("costmodel") or {}
+    an = (f"cost model {cm['predicted_ms']:.1f} ms (error {100 * cm['error']:+.0f}%; paper's "
+          f"board layer {cm['board_ms']:.1f} ms)"
+          if "predicted_ms" in cm else f"cost model n/a ({cm.get('error', 'not run')})")
+    click.echo(f"M={m} N={n} @ {res['clock_mhz']:.0f} MHz ({res['core']}): emulated "
+               f"{res['predicted_ms']:.1f} ms (best-worst {res['predicted_ms_range'][0]:.1f}-"
+               f"{res['predicted_ms_range'][1]:.1f}); {an}")
+    ram = res["ram"]
+    click.echo(f"RAM of the largest run: {ram['total_bytes']} bytes (.data {ram['data_bytes']}, "
+               f".bss {ram['bss_bytes']}, stack {ram['stack_bytes']}, heap {ram['heap_bytes']}; "
+               f"host-written y/u/x logs {ram['input_bytes']})")
+    tr = res["tracking"]
+    click.echo(f"tracking (M={tr['steps']}, N={tr['particles']}): RMSE emulated / host NumPy "
+               "bootstrap: " + ", ".join(f"{s} {a:.3g}/{b:.3g}" for s, a, b in zip(
+                   tr["state_names"], tr["emulated_rmse"], tr["host_rmse"])))
+    click.echo(f"same filter in float64 NumPy with the target's random numbers: SSE relative "
+               f"difference {tr['crn_rel_diff']:.2g}")
+    tot = res["cycles_per_particle_step"]
+    for title, key in (("cycles per particle-step by library call (inclusive)",
+                        "by_library_call_inclusive"),
+                       ("by C function (inclusive of its library calls)",
+                        "by_c_function_inclusive")):
+        click.echo(f"\n{title}:")
+        for name, v in list(res["breakdown"][key].items())[:10]:
             click.echo(f"  {name:28s} {v:10.1f}  {100 * v / tot:5.1f}%")
     click.echo("\nNot seen by the emulator: " + res["unseen"])

@@ -1,4 +1,9 @@
-"""Cross-compile the C bootstrap filter (``pfbench/mcu/c/``) for a bare-metal Cortex-M4(F).
+"""Cross-compile the C bootstrap filters (``pfbench/mcu/c/``) for a bare-metal Cortex-M4(F).
+
+* :func:`build`: the hand-written Ob1 port ``pf_ob1.c`` ([Embedded] Table 2 benchmark);
+* :func:`build_model`: the generic harness ``pf_model.c`` linked with any model's object
+  (``pf_model.h`` ABI; the model's own code compiled by :mod:`pfbench.mcu.modelcode`, or a
+  hand-written C model via :func:`compile_c_model`).
 
 Two builds mirror [Embedded], Table 2 (§5.1):
 
@@ -19,10 +24,10 @@ import os
 import shutil
 import subprocess
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import InputError, PfbenchError
+from ..errors import InputError, PfbenchError, UnsupportedError
 
 C_DIR = Path(__file__).resolve().parent / "c"
 SOURCES = ("pf_ob1.c", "startup.c")
@@ -49,8 +54,16 @@ class Build:
     bin: Path          # flash image (objcopy -O binary, LMA order, starts at 0x08000000)
     disasm: Path       # arm-none-eabi-objdump -d
     symbols: Path      # arm-none-eabi-nm -n
-    user_symbols: Path  # nm of pf_ob1.o: the functions written in our C file
+    user_symbols: Path  # nm of our own objects (pf_ob1.o; harness + model object)
     cflags: tuple
+    model: str | None = None   # model builds (build_model): the model and its dimensions
+    n_x: int = 0
+    n_y: int = 0
+    n_u: int = 0
+    n_noise: int = 0
+    nmax: int = 0              # PF_NMAX (pf_ob1: 1000)
+    mmax: int = 0              # PF_MMAX (pf_ob1: unlimited, object simulated inside)
+    tile: int = 0              # PF_TILE
 
 
 def missing() -> list[str]:
@@ -103,37 +116,25 @@ def _run(cmd: list[str], cwd: Path, stdout=None) -> None:
                            f"{res.stderr.strip().splitlines()[-1] if res.stderr.strip() else ''}")
 
 
-def build(precision: str = "float", opt: str | None = None, force: bool = False) -> Build:
-    """Build (or fetch from the cache) the D(S) (``double``) or D(O) (``float``) image."""
-    if precision not in BUILDS:
-        raise InputError(f"precision must be one of {sorted(BUILDS)}, got {precision!r}")
-    why = [m for m in missing() if "unicorn" not in m]
-    if why:
-        raise PfbenchError("; ".join(why))
-    label, flags, default_opt = BUILDS[precision]
-    cflags = tuple(_COMMON + flags + [opt or default_opt])
+def _key(parts) -> str:
+    """Hash of (name, bytes) pairs + the compiler version: the cache key of a build."""
     h = hashlib.sha256()
-    for name in (*SOURCES, LINKER_SCRIPT):
-        h.update(name.encode() + b"\0" + (C_DIR / name).read_bytes())
-    h.update("\0".join(cflags).encode() + compiler_version().encode())
-    out = cache_root() / f"{precision}-{h.hexdigest()[:16]}"
-    files = dict(elf=out / "pf_ob1.elf", bin=out / "pf_ob1.bin", disasm=out / "pf_ob1.dis",
-                 symbols=out / "pf_ob1.nm", user_symbols=out / "pf_ob1_user.nm")
+    for name, data in parts:
+        h.update(str(name).encode() + b"\0" + (data if isinstance(data, bytes) else
+                                                str(data).encode()) + b"\0")
+    h.update(compiler_version().encode())
+    return h.hexdigest()[:16]
+
+
+def _cached(out: Path, names: tuple[str, ...], make, force: bool = False) -> dict:
+    """``{name: out/name}``; when any is missing (or ``force``), ``make(tmp)`` builds them in a
+    fresh directory that then atomically becomes ``out`` (a concurrent identical build wins)."""
+    files = {n: out / n for n in names}
     if force or not all(p.exists() for p in files.values()):
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=out.name + ".", dir=out.parent))
         try:
-            srcs = [str(C_DIR / s) for s in SOURCES]
-            _run([GCC, *cflags, "-T", str(C_DIR / LINKER_SCRIPT), *srcs, "-lm",
-                  "-o", "pf_ob1.elf"], tmp)
-            _run([GCC, *cflags, "-c", str(C_DIR / "pf_ob1.c"), "-o", "pf_ob1.o"], tmp)
-            _run(["arm-none-eabi-objcopy", "-O", "binary", "pf_ob1.elf", "pf_ob1.bin"], tmp)
-            with open(tmp / "pf_ob1.dis", "w") as f:
-                _run(["arm-none-eabi-objdump", "-d", "pf_ob1.elf"], tmp, stdout=f)
-            with open(tmp / "pf_ob1.nm", "w") as f:
-                _run(["arm-none-eabi-nm", "-n", "-S", "pf_ob1.elf"], tmp, stdout=f)
-            with open(tmp / "pf_ob1_user.nm", "w") as f:
-                _run(["arm-none-eabi-nm", "pf_ob1.o"], tmp, stdout=f)
+            make(tmp)
             if force and out.exists():
                 shutil.rmtree(out, ignore_errors=True)
             try:
@@ -144,4 +145,180 @@ def build(precision: str = "float", opt: str | None = None, force: bool = False)
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
-    return Build(precision=precision, label=label, cflags=cflags, **files)
+    return files
+
+
+def _link(tmp: Path, stem: str, cflags, inputs, user_objects) -> None:
+    """Link ``inputs`` (sources/objects) with startup.c and the linker script into
+    ``stem.elf``; write ``stem.bin`` (flash image), ``stem.dis`` (objdump -d), ``stem.nm``
+    (nm -n -S) and ``stem_user.nm`` (nm of ``user_objects``: the code we wrote or compiled)."""
+    _run([GCC, *cflags, "-T", str(C_DIR / LINKER_SCRIPT), *map(str, inputs),
+          str(C_DIR / "startup.c"), "-lm", "-o", f"{stem}.elf"], tmp)
+    _run(["arm-none-eabi-objcopy", "-O", "binary", f"{stem}.elf", f"{stem}.bin"], tmp)
+    with open(tmp / f"{stem}.dis", "w") as f:
+        _run(["arm-none-eabi-objdump", "-d", f"{stem}.elf"], tmp, stdout=f)
+    with open(tmp / f"{stem}.nm", "w") as f:
+        _run(["arm-none-eabi-nm", "-n", "-S", f"{stem}.elf"], tmp, stdout=f)
+    with open(tmp / f"{stem}_user.nm", "w") as f:
+        _run(["arm-none-eabi-nm", *map(str, user_objects)], tmp, stdout=f)
+
+
+def _check_tools() -> None:
+    why = [m for m in missing() if "unicorn" not in m]
+    if why:
+        raise PfbenchError("; ".join(why))
+
+
+def build(precision: str = "float", opt: str | None = None, force: bool = False) -> Build:
+    """Build (or fetch from the cache) the D(S) (``double``) or D(O) (``float``) image."""
+    if precision not in BUILDS:
+        raise InputError(f"precision must be one of {sorted(BUILDS)}, got {precision!r}")
+    _check_tools()
+    label, flags, default_opt = BUILDS[precision]
+    cflags = tuple(_COMMON + flags + [opt or default_opt])
+    key = _key([*((n, (C_DIR / n).read_bytes()) for n in (*SOURCES, LINKER_SCRIPT)),
+                ("cflags", "\0".join(cflags))])
+    out = cache_root() / f"{precision}-{key}"
+
+    def make(tmp):
+        _run([GCC, *cflags, "-c", str(C_DIR / "pf_ob1.c"), "-o", "pf_ob1.o"], tmp)
+        _link(tmp, "pf_ob1", cflags, [C_DIR / "pf_ob1.c"], ["pf_ob1.o"])
+
+    f = _cached(out, ("pf_ob1.elf", "pf_ob1.bin", "pf_ob1.dis", "pf_ob1.nm", "pf_ob1_user.nm"),
+                make, force)
+    return Build(precision=precision, label=label, cflags=cflags, elf=f["pf_ob1.elf"],
+                 bin=f["pf_ob1.bin"], disasm=f["pf_ob1.dis"], symbols=f["pf_ob1.nm"],
+                 user_symbols=f["pf_ob1_user.nm"])
+
+
+# ------------------------------------------------------------------ any model: pf_model.c
+HARNESS = "pf_model.c"
+NRT_SHIM = "nrt_shim.c"
+
+#: ABI flags of model builds per target cpu.  Both precisions use the M4F hard-float ABI
+#: (-mfpu=fpv4-sp-d16 -mfloat-abi=hard), the ABI the model object is compiled for: floats
+#: run on the FPU, doubles are libgcc soft-float calls (__aeabi_dmul ...) and the hard-float
+#: newlib's double libm, arguments passed in VFP registers.
+#: Other cores: no FPU (M0+, M3) = soft-float ABI; M7 double-precision FPv5, M33 single.
+MODEL_ABI = {"cortex-m4": ["-mfpu=fpv4-sp-d16", "-mfloat-abi=hard"],
+             "cortex-m0plus": ["-mfloat-abi=soft"], "cortex-m3": ["-mfloat-abi=soft"],
+             "cortex-m7": ["-mfpu=fpv5-d16", "-mfloat-abi=hard"],
+             "cortex-m33": ["-mfpu=fpv5-sp-d16", "-mfloat-abi=hard"]}
+#: -O level of the harness per precision: the same as the Ob1 builds (D(O) -Ofast, D(S) -O0),
+#: so a model build and the hand-written port differ only in where the model code comes from.
+MODEL_OPT = {"float": "-Ofast", "double": "-O0"}
+
+
+@dataclass(frozen=True)
+class CModel:
+    """A model written by hand in C against ``pf_model.h`` (same fields as the compiled
+    :class:`pfbench.mcu.modelcode.ModelObject` that :func:`build_model` reads)."""
+
+    model: str
+    precision: str
+    obj: Path
+    n_x: int
+    n_y: int
+    n_u: int
+    n_noise: int
+    cpu: str = "cortex-m4"
+    defines: tuple = ()
+    needs_nrt: bool = False
+    double_ops: dict = field(default_factory=dict)
+
+
+def _dims(mo) -> list[str]:
+    return [f"-DPFM_NX={int(mo.n_x)}", f"-DPFM_NY={int(mo.n_y)}", f"-DPFM_NU={int(mo.n_u)}",
+            f"-DPFM_NNOISE={int(mo.n_noise)}"]
+
+
+def _model_flags(precision: str, cpu: str, opt: str | None, gcc_flags=None) -> list[str]:
+    """Flags of a model build: ``gcc_flags`` (the model object's own -mcpu/-mfloat-abi/-mfpu,
+    :attr:`pfbench.mcu.modelcode.ModelObject.gcc_flags`) or else :data:`MODEL_ABI` of
+    ``cpu``, then -DPF_FLOAT, the -O level (:data:`MODEL_OPT`) and the include path."""
+    if precision not in MODEL_OPT:
+        raise InputError(f"precision must be 'float' or 'double', got {precision!r}")
+    common = [f for f in _COMMON if not f.startswith("-mcpu=")]
+    if gcc_flags:
+        abi = list(gcc_flags)
+    elif cpu in MODEL_ABI:
+        abi = [f"-mcpu={cpu}", "-mthumb", *MODEL_ABI[cpu]]
+    else:
+        raise UnsupportedError(f"model builds support cpu {sorted(MODEL_ABI)}, not {cpu!r}")
+    return abi + common + (["-DPF_FLOAT"] if precision == "float" else []) + [
+        opt or MODEL_OPT[precision], f"-I{C_DIR}"]
+
+
+def compile_c_model(source, precision: str, model: str, n_x: int, n_y: int, n_u: int = 0,
+                    n_noise: int = 1, opt: str | None = None, cpu: str = "cortex-m4",
+                    defines: tuple = ()) -> CModel:
+    """Cross-compile a hand-written C model (``pf_model.h`` ABI) to an object (cached);
+    ``defines`` are extra -D flags of the model file (default -O level: -O2)."""
+    _check_tools()
+    source = Path(source).resolve()
+    mo = CModel(model=model, precision=precision, obj=Path(), n_x=n_x, n_y=n_y, n_u=n_u,
+                n_noise=n_noise, cpu=cpu)
+    cflags = tuple(_model_flags(precision, cpu, opt or "-O2") + _dims(mo) + list(defines))
+    key = _key([(source.name, source.read_bytes()),
+                ("pf_model.h", (C_DIR / "pf_model.h").read_bytes()),
+                ("cflags", "\0".join(cflags))])
+    out = cache_root() / f"cmodel-{model}-{precision}-{key}"
+    f = _cached(out, ("model.o",), lambda tmp: _run(
+        [GCC, *cflags, "-c", str(source), "-o", "model.o"], tmp))
+    return CModel(model=model, precision=precision, obj=f["model.o"], n_x=n_x, n_y=n_y, n_u=n_u,
+                  n_noise=n_noise, cpu=cpu)
+
+
+def build_model(model_object, precision: str | None = None, opt: str | None = None,
+                nmax: int = 256, mmax: int = 64, tile: int = 32, force: bool = False) -> Build:
+    """Link the generic harness ``pf_model.c`` with a model object into an image (cached).
+
+    ``model_object`` is a :class:`pfbench.mcu.modelcode.ModelObject` (the model's own code
+    compiled for the target, any cpu it supports: its ``gcc_flags`` are used) or a
+    :class:`CModel`: an ARM object defining ``pfm_transition``
+    and ``pfm_log_likelihood`` (``pf_model.h``) plus its dimensions; ``needs_nrt`` links
+    ``nrt_shim.c`` (numba's allocation calls over malloc).  ``precision`` defaults to the
+    object's.  Flags: :data:`MODEL_ABI` of the object's cpu, -O level :data:`MODEL_OPT`;
+    ``nmax``/``mmax`` size the static buffers (PF_NMAX particles, PF_MMAX steps) and ``tile``
+    the model calls (PF_TILE particles).  The cache key includes the object's bytes.
+    """
+    precision = precision or model_object.precision
+    if precision != model_object.precision:
+        raise InputError(f"the model object was compiled for {model_object.precision}, "
+                         f"not {precision}")
+    for name, v in (("nmax", nmax), ("mmax", mmax), ("tile", tile)):
+        if int(v) < 1:
+            raise InputError(f"{name} must be >= 1, got {v}")
+    _check_tools()
+    cpu = getattr(model_object, "cpu", "cortex-m4")
+    sizes = [f"-DPF_NMAX={int(nmax)}", f"-DPF_MMAX={int(mmax)}", f"-DPF_TILE={int(tile)}"]
+    extra = [d for d in getattr(model_object, "defines", ()) if d not in _dims(model_object)]
+    cflags = tuple(_model_flags(precision, cpu, opt, getattr(model_object, "gcc_flags", None))
+                   + _dims(model_object) + extra + sizes)
+    obj = Path(model_object.obj)
+    if not obj.exists():
+        raise PfbenchError(f"model object {obj} does not exist")
+    srcs = [HARNESS, "pf_model.h", "startup.c", LINKER_SCRIPT]
+    nrt = bool(getattr(model_object, "needs_nrt", False))
+    if nrt:
+        if not (C_DIR / NRT_SHIM).exists():
+            raise PfbenchError(f"the model needs numba's runtime but {C_DIR / NRT_SHIM} is missing")
+        srcs.append(NRT_SHIM)
+    key = _key([*((n, (C_DIR / n).read_bytes()) for n in srcs), ("model.o", obj.read_bytes()),
+                ("cflags", "\0".join(cflags))])
+    out = cache_root() / f"model-{model_object.model.replace(':', '_')}-{precision}-{key}"
+
+    def make(tmp):
+        _run([GCC, *cflags, "-c", str(C_DIR / HARNESS), "-o", "harness.o"], tmp)
+        shutil.copy(obj, tmp / "model.o")
+        inputs = ["harness.o", "model.o"] + ([str(C_DIR / NRT_SHIM)] if nrt else [])
+        _link(tmp, "pf_model", cflags, inputs, ["harness.o", "model.o"])
+
+    f = _cached(out, ("pf_model.elf", "pf_model.bin", "pf_model.dis", "pf_model.nm",
+                      "pf_model_user.nm"), make, force)
+    return Build(precision=precision, label=f"{model_object.model} ({precision})", cflags=cflags,
+                 elf=f["pf_model.elf"], bin=f["pf_model.bin"], disasm=f["pf_model.dis"],
+                 symbols=f["pf_model.nm"], user_symbols=f["pf_model_user.nm"],
+                 model=model_object.model, n_x=int(model_object.n_x), n_y=int(model_object.n_y),
+                 n_u=int(model_object.n_u), n_noise=int(model_object.n_noise), nmax=int(nmax),
+                 mmax=int(mmax), tile=int(tile))

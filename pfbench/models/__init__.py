@@ -8,12 +8,21 @@ A *model spec* is the text a user types to pick a model: its registry name, opti
 by a variant, ``name:vN`` (or ``name:N``), which is the model parameter ``version=N`` (Ob3's
 versions 1-5 of [MultiPDF] §4: ``ob3:v4``). :func:`parse_spec` reads it, :func:`get_spec`
 instantiates it; every command that takes ``--model`` goes through them.
+
+Models of the user live in their own ``.py`` files (a class decorated by :func:`register`, as in
+the README): :func:`load_files` imports them (``pfbench --models my_model.py ...`` on the command
+line, or the environment variable ``PFBENCH_MODELS``: paths separated by ``os.pathsep``), after
+which their names work everywhere a registered name does.
 """
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import inspect
+import os
 import pkgutil
+import sys
+from pathlib import Path
 
 from ..errors import InputError
 from ..options import check_known, typed
@@ -21,6 +30,8 @@ from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 
 _REGISTRY: dict[str, type[StateSpaceModel]] = {}
 _LOADED = False
+_FILES: dict[str, str] = {}  # resolved path of a loaded user model file -> its module name
+MODELS_ENV = "PFBENCH_MODELS"
 
 
 def register(name: str):
@@ -44,6 +55,41 @@ def _load_all() -> None:
     for mod in pkgutil.iter_modules(__path__):
         if mod.name != "base":
             importlib.import_module(f"{__name__}.{mod.name}")
+    env = os.environ.get(MODELS_ENV, "")
+    load_files([p for p in env.split(os.pathsep) if p.strip()])
+
+
+def load_files(paths) -> list[str]:
+    """Import user model files (``.py``) so the models they :func:`register` can be named.
+
+    Each file becomes a module of its own (imported once per process, under a name derived from
+    its path, so its classes can be found again by the MCU compiler's worker process). Returns
+    the names registered by the files. A missing file or one that fails to import is an
+    :class:`~pfbench.errors.InputError` naming the file and the first line of the reason.
+    """
+    added = []
+    for raw in paths:
+        path = Path(raw).expanduser()
+        if path.suffix != ".py" or not path.is_file():
+            raise InputError(f"model file {str(raw)!r}: not an existing .py file")
+        key = str(path.resolve())
+        if key in _FILES:
+            continue
+        before = set(_REGISTRY)
+        name = f"pfbench_user_models.m{len(_FILES)}_{path.stem}"
+        spec = importlib.util.spec_from_file_location(name, key)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:  # noqa: BLE001 - the user's code: report it in one line
+            sys.modules.pop(name, None)
+            first = (str(exc).strip().splitlines() or [""])[0]
+            raise InputError(f"model file {str(raw)!r} failed to import: "
+                             f"{type(exc).__name__}: {first}") from None
+        _FILES[key] = name
+        added += sorted(set(_REGISTRY) - before)
+    return added
 
 
 def names() -> list[str]:
@@ -168,4 +214,4 @@ def get_spec(spec: str, **params) -> StateSpaceModel:
 
 
 __all__ = ["StateSpaceModel", "Trajectory", "gaussian_loglik_diag", "register", "names", "get",
-           "get_spec", "parse_spec", "model_class"]
+           "get_spec", "parse_spec", "model_class", "load_files"]

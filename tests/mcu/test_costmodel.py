@@ -143,3 +143,42 @@ def test_bad_inputs(kw, match):
     args = dict(model="ob1", n_steps=10, n_particles=10, precision="float") | kw
     with pytest.raises(PfbenchError, match=match):
         cm.predict(**args)
+
+
+# ---------------------------------------------------------------- two layers: code and board
+def test_code_terms_structure(table):
+    # each term is its count x its cost: catches a term costed with the wrong count or left out
+    counts = {"add": 10, "normal": 4, "tmp": 6, "mm_load": 8, "alloc": 2}
+    k = {"constants": {"alloc": {"float": 5.0, "double": 7.0}, "normal": {"float": 3.0, "double": 11.0},
+                       "particle_step": {"float": -2.0, "double": 13.0}}}
+    t = cm.code_terms(counts, "double", table, 3, 7, k)
+    ld, st = table.cost("double", "load"), table.cost("double", "store")
+    assert t["table"] == pytest.approx(10 * table.cost("double", "add") + 4 * table.cost("double", "normal"))
+    assert t["temporaries"] == 6 * (ld + st)
+    assert t["matmul_loads"] == 8 * ld
+    assert (t["alloc"], t["normal"], t["particle_step"]) == (14.0, 44.0, 3 * 7 * 13.0)
+
+
+def test_predict_layers():
+    # board (b) = Table-2 efficiency x table cycles, unchanged default; code (a) = sum of its
+    # terms with no Table-2 factor; basis picks which one predicted_ms is
+    b = cm.predict("ob1", 50, 200, "float")
+    c = cm.predict("ob1", 50, 200, "float", basis="code")
+    eff = cm.calibrate()["efficiency"]["float"]
+    assert b["predicted_ms"] == pytest.approx(eff * b["raw_ms"]) == pytest.approx(b["board_ms"])
+    assert c["predicted_ms"] == pytest.approx(c["code_ms"]) == pytest.approx(b["code_ms"])
+    assert c["code_cycles_per_particle_step"] == pytest.approx(sum(c["code_terms"].values()))
+    assert c["code_terms"]["table"] == pytest.approx(b["raw_cycles"] / (50 * 200))
+    assert cm.predict("ob1", 50, 200, "float", calibrated=False)["predicted_ms"] == \
+        pytest.approx(b["raw_ms"])
+    with pytest.raises(PfbenchError, match="basis"):
+        cm.predict("ob1", 50, 200, "float", basis="paper")
+
+
+def test_code_constants_fitted_on_training_models_only():
+    # provenance of the fitted constants: what was emulated (training models only) and on what code
+    k = cm.load_code_costs()
+    assert set(k["training_models"]) == set(cm.TRAINING_MODELS)
+    assert {e["model"] for e in k["emulated"]} == set(cm.TRAINING_MODELS)
+    assert set(k["constants"]) == set(cm.CODE_CONSTANTS)
+    assert k["code_version"]["sha256"]

@@ -94,3 +94,71 @@ def test_counting_does_not_change_the_numbers():
 def test_bad_configuration(bad):
     with pytest.raises(PfbenchError):
         counting.count_run("ob1", 3, 10, **bad)
+
+
+def test_counts_beyond_one_stream_block():
+    # N_p above numpy_backend.BLOCK: counting runs the population as one block (it gives the engine
+    # no per-block streams); before that was handled the draws of the first block were broadcast
+    # against the whole population and counting failed for N_p > BLOCK
+    n = numpy_backend.BLOCK + 100
+    c = _exact("ob1", 2, n)
+    assert c["normal"] == 2 * n
+
+
+# ---------------------------------------------------------------- compiled-code conventions
+class _ToyMatmul:
+    """x_t = x_{t-1} @ A + noise (2 states), log-likelihood of y = x[:, 0]."""
+    n_noise = 2
+    A = np.array([[0.9, 0.1], [0.0, 0.8]])
+
+    def kernel_functions(self):
+        def transition(x, u, t, noise, p):
+            return x @ self.A + noise
+
+        def log_likelihood(y, x, u, t, p):
+            xx = x[:, 0]                 # a view: no temporary
+            return -0.5 * (y[0] - xx) ** 2
+
+        return {"initial": None, "transition": transition, "log_likelihood": log_likelihood,
+                "observe": None}
+
+
+@pytest.mark.parametrize("n", [32, 33, 64])
+def test_code_ops_on_toy_model(n):
+    # tmp: every array result is materialised (transition: x @ A and + noise, 2 N each;
+    # log-likelihood: y - xx, **2, * -0.5, N each; the view x[:, 0] none) -> 7 N elements;
+    # alloc: 5 arrays, each once per 32-particle tile; mm_load: 2 k loads per output element.
+    # Catches: views counted as arrays, allocations per call instead of per tile, a matrix
+    # product without its operand loads, code ops leaking outside the model functions.
+    toy = counting._CountingModel(_ToyMatmul(), True).kernel_functions()
+    x = counting._wrap(np.ones((n, 2)), mem=True)
+    with counting.counting() as c:
+        xp = toy["transition"](x, np.zeros(0), 3, counting._wrap(np.zeros((n, 2)), mem=True), ())
+        toy["log_likelihood"](np.array([0.5]), xp, np.zeros(0), 3, ())
+        _ = counting._wrap(np.ones(n), mem=False) * 2.0     # outside the model: no code ops
+    ops = c.as_dict()
+    tiles = -(-n // 32)
+    assert ops["tmp"] == 7 * n
+    assert ops["alloc"] == 5 * tiles
+    assert ops["mm_load"] == 2 * (n * 2) * 2
+    assert ops["mul"] == n * 2 * 2 + n + n + n   # matmul k=2, square, * -0.5, outside * 2
+
+
+def test_code_counts_leave_engine_counts_alone_and_follow_ob1_source():
+    # Ob1's source has 9 array results in transition and 7 in log_likelihood: 16 per particle
+    # per step, allocated once per tile of 32; every other count is the same with code=True
+    m, n = 5, 65
+    plain = counting.count_run("ob1", m, n, exact=True)
+    code = counting.count_run("ob1", m, n, exact=True, code=True)
+    assert {k: v for k, v in code.items() if k not in counting.CODE_OPS} == plain
+    assert code["tmp"] == 16 * m * n
+    assert code["alloc"] == 16 * m * 3          # ceil(65 / 32) = 3 tiles
+    assert "mm_load" not in code
+
+
+def test_cbrt_is_its_own_operation():
+    # ob4's transition takes one np.cbrt per particle: counted as cbrt (newlib cbrt costs about
+    # half a pow), never as pow. Catches cbrt mapped back to pow.
+    c = _exact("ob4", 3, 20)
+    assert c.get("cbrt", 0) > 0 and c["cbrt"] % 20 == 0
+    assert c.get("pow", 0) == 0

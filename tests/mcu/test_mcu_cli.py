@@ -45,6 +45,7 @@ def test_calibrate_command():
     (["--filters", "2"], "--filters"),
     (["--cycles", "/nonexistent/c.json"], "not found"),
     (["--particles", "100000", "--precision", "double"], "largest N_p that fits"),
+    (["--basis", "code", "--no-calibration"], "--basis"),
 ])
 def test_bad_inputs_one_line_exit_2(args, needle):
     r = _run(["estimate", *args])
@@ -84,3 +85,14 @@ def test_estimate_model_variant_and_params():
 def test_estimate_choices_come_from_the_tables(args, needle):
     r = _run(["estimate", *args])
     assert r.exit_code == 2 and needle in r.stderr and "\n" not in r.stderr.strip()
+
+
+def test_estimate_basis_selects_the_layer():
+    # board (default) = Table-2 efficiency x table cycles; code = the compiled-code layer; both
+    # layers are in every result. Catches --basis ignored or the layers swapped.
+    out = {b: json.loads(_run(["estimate", "--model", "ob1", "--basis", b, "--json"]).output)
+           for b in ("board", "code", "table")}
+    assert out["board"]["predicted_ms"] == out["board"]["board_ms"]
+    assert out["code"]["predicted_ms"] == out["code"]["code_ms"] == out["board"]["code_ms"]
+    assert out["table"]["predicted_ms"] == out["table"]["raw_ms"]
+    assert len({round(o["predicted_ms"], 6) for o in out.values()}) == 3
