@@ -141,10 +141,13 @@ def _format(r: dict) -> str:
 @click.option("--precision", "precisions", multiple=True, type=click.Choice(["float", "double"]),
               help="Restrict to a precision (repeatable; default both).")
 @click.option("--history", is_flag=True, help="Count the M-step history arrays in the RAM check.")
+@click.option("--basis", type=click.Choice(["board", "code", "table"]), default="board", show_default=True,
+              help="Time layer, as for `mcu estimate`: board = hand-written C on the paper's board "
+                   "(Table-2 efficiency); code = the code pfbench compiles (what `mcu emulate --model` runs).")
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help="Model parameter (repeatable).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def fit(model_name, steps, period_us, method, filters, resampling, core_names, precisions, history, params,
-        as_json):
+def fit(model_name, steps, period_us, method, filters, resampling, core_names, precisions, history, basis,
+        params, as_json):
     """Largest N_p per core and precision that meets the sampling period and fits in RAM."""
     from .. import models
     from . import cores as _cores
@@ -155,12 +158,14 @@ def fit(model_name, steps, period_us, method, filters, resampling, core_names, p
         raise click.BadParameter(f"--filters {filters} needs --method multipdf", param_hint="'--filters'")
     keys = [_cores.get(c).key for c in core_names] or None
     r = _fit(name, steps, period_us, method=method, n_filters=filters, resampling=resampling, cores=keys,
-             precisions=tuple(precisions) or ("float", "double"), history=history, model_params=model_params)
+             precisions=tuple(precisions) or ("float", "double"), history=history, model_params=model_params,
+             basis=basis)
     if as_json:
         click.echo(to_json(r, indent=2, default=float))
         return
     click.echo(f"{r['model']} {r['method']}: largest N_p per step period {r['period_us']:g} us "
-               f"({r['rate_hz']:g} Hz){' with M-step history in RAM' if r['history'] else ''}")
+               f"({r['rate_hz']:g} Hz){' with M-step history in RAM' if r['history'] else ''}; "
+               f"time basis: {r['basis']}")
     click.echo(f"{'core':<11}{'chip':<13}{'MHz':>5}{'RAM kB':>8} {'prec':<7}{'N_p':>8} {'limit':<6}"
                f"{'step us':>9}{'uJ/step':>9}")
     for x in r["rows"]:

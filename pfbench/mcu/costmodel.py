@@ -291,7 +291,7 @@ def code_terms(counts: dict, precision: str, table: CycleTable, n_steps: int, n_
     }
 
 
-def _code_version() -> dict:
+def code_version() -> dict:
     """Hashes of the sources whose compiled code the derivation emulates."""
     here = Path(__file__).resolve().parent
     files = ["c/pf_model.c", "c/pf_model.h", "c/nrt_shim.c", "modelcode.py", "emulate.py", "toolchain.py",
@@ -381,7 +381,7 @@ def derive_code_costs(training=TRAINING_MODELS, write: bool = False, seed: int =
                      "(Cortex-M4 nominal timing table) of the training models' own compiled code in "
                      "pfbench/mcu/c/pf_model.c; every other model is held out",
            "training_models": list(training), "compared_at": {"steps": m, "particles": n},
-           "emulated": emus, "code_version": _code_version(),
+           "emulated": emus, "code_version": code_version(),
            "compiler": toolchain.compiler_version(), "cycles_table": str(table.path),
            "notes": CODE_CONSTANTS,
            "constants": {k: {p: round(v, 3) for p, v in d.items()} for k, d in consts.items()}}
@@ -474,8 +474,7 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
     code_ms = cycles_to_ms(code_total, clock)
     eff, ebasis = {"board": (board_eff, eff_basis),
                    "table": (1.0, "uncalibrated (instruction-table cycles)"),
-                   "code": (code_total / total if total else 1.0,
-                            "code layer: pfbench's compiled code, zero wait states (code_ms / raw_ms)")}[basis]
+                   "code": (code_total / total if total else 1.0, CODE_BASIS + " (code_ms / raw_ms)")}[basis]
     ms = eff * raw_ms
     ps = int(n_steps) * int(n_particles)
     mcu_w = c.power_w(clock)
@@ -518,14 +517,21 @@ _FIT_NP = (100, 200, 400)
 _FIT_MAX_STEPS = 100
 
 
-def _step_model(model, n_steps, precision, method, n_filters, resampling, model_params, table, clock, eff):
-    """Per-step time (us) as a + b N_p from counts at two N_p; the third checks linearity."""
+CODE_BASIS = "code layer: pfbench's compiled code, zero wait states"
+
+
+def _step_model(model, n_steps, precision, method, n_filters, resampling, model_params, table, clock, eff,
+                basis="board"):
+    """Per-step time (us) as a + b N_p from counts at two N_p; the third checks linearity.
+    ``basis`` "code": the code layer (a) (``eff`` unused); else ``eff`` x table cycles."""
     m = min(int(n_steps), _FIT_MAX_STEPS)
     us = []
     for n in _FIT_NP:
         nf = int(n_filters)
-        counts = count_ops(model, m, n, method, nf, resampling, model_params)
-        us.append(eff * cycles_to_ms(raw_cycles(counts, precision, table), clock) * 1e3 / m)
+        counts = count_ops(model, m, n, method, nf, resampling, model_params, code=basis == "code")
+        cyc = (float(sum(code_terms(counts, precision, table, m, n).values())) if basis == "code"
+               else eff * raw_cycles(counts, precision, table))
+        us.append(cycles_to_ms(cyc, clock) * 1e3 / m)
     b = (us[1] - us[0]) / (_FIT_NP[1] - _FIT_NP[0])
     a = us[0] - b * _FIT_NP[0]
     lin = abs(a + b * _FIT_NP[2] - us[2]) / us[2]
@@ -535,9 +541,13 @@ def _step_model(model, n_steps, precision, method, n_filters, resampling, model_
 def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str = "bootstrap",
         n_filters: int = 1, resampling: str = "systematic", *, cores=None, precisions=PRECISIONS,
         clock_mhz: dict | None = None, history: bool = False, calibrated: bool = True,
-        model_params: dict | None = None) -> dict:
+        model_params: dict | None = None, basis: str | None = None) -> dict:
     """For each core and precision, the largest N_p whose per-step time meets ``period_us``
     AND whose arrays fit the core's RAM; which limit binds; energy per step at that N_p.
+
+    ``basis`` is the time layer as in :func:`predict`: "board" (default; the [Embedded] Table-2
+    efficiency: hand-written C on the paper's board), "code" (the code pfbench compiles for the
+    MCU, zero wait states; its constants were derived on the M4) or "table".
 
     The per-step time is affine in N_p, ``a + b N_p`` (fixed per-step work + per-particle
     work), fitted from operation counts at N_p = 100 and 200 over ``min(M, 100)`` steps
@@ -554,14 +564,21 @@ def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str
     mdl = models.get(model, **(model_params or {})) if isinstance(model, str) else model
     counting._validate(mdl, n_steps, max(_FIT_NP), method, n_filters, resampling)
     key = model if isinstance(model, str) else mdl
+    if basis is None:
+        basis = "board" if calibrated else "table"
+    if basis not in ("board", "code", "table"):
+        raise InputError(f"unknown basis {basis!r}; choose board, code or table")
     rows = []
     for c in [_cores.get(k) for k in (cores or _cores.names())]:
         clock = _check_clock((clock_mhz or {}).get(c.key, c.clock_mhz))
         table = c.cycle_table()
         for prec in precisions:
-            eff, basis = _efficiency(c, table, prec, calibrated)
+            eff, ebasis = _efficiency(c, table, prec, basis == "board")
+            if basis == "code":
+                eff, ebasis = None, CODE_BASIS + ("" if c.key == "m4" else
+                                                  "; constants derived on the Cortex-M4, applied unchanged")
             a, b, lin = _step_model(key, n_steps, prec, method, n_filters, resampling, model_params, table,
-                                    clock, eff)
+                                    clock, eff, basis)
             n_time = int(math.floor((period - a) / b)) if period > a else 0
             mem = memory_bytes(mdl, 1, n_steps, prec, history, c)
             n_ram = mem["max_particles"]
@@ -580,8 +597,9 @@ def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str
                          "utilisation": None if step_us is None else step_us / period,
                          "mcu_power_w": c.power_w(clock), "energy_per_step_uj": e_uj,
                          "bytes_per_particle": mem["bytes_per_particle"],
-                         "efficiency": eff, "efficiency_basis": basis, "linearity_error": lin})
+                         "efficiency": eff, "efficiency_basis": ebasis, "linearity_error": lin})
     return {"model": getattr(mdl, "name", str(model)), "method": method, "n_filters": int(n_filters),
+            "basis": basis,
             "resampling": resampling, "n_steps": int(n_steps), "period_us": period,
             "rate_hz": 1e6 / period, "history": bool(history), "rows": rows,
             "notes": ["max_particles: largest N_p with per-step time <= period AND arrays <= usable RAM; "
@@ -589,7 +607,8 @@ def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str
                       "minimum fits",
                       "energy_per_step_uj: MCU active current x voltage x per-step time at that N_p "
                       "(datasheet figures in cores.json, several marked assumed)",
-                      EFFICIENCY_NOTE + " for every core but the M4"]}
+                      EFFICIENCY_NOTE + " for every core but the M4" if basis == "board" else
+                      f"time basis: {basis} ({CODE_BASIS if basis == 'code' else 'instruction-table cycles'})"]}
 
 
 if __name__ == "__main__":  # python -m pfbench.mcu.costmodel --derive [--write]

@@ -149,7 +149,15 @@ def mcu_models(ctx):
         "met": bool(len(ok)) and bool(ok.within_target.all()),
         "code_costs": CM.load_code_costs(),
     }
+    # the constants were derived on the code that is emulated now (else re-derive them:
+    # python -m pfbench.mcu.costmodel --derive --write)
+    check["code_costs_current"] = (check["code_costs"]["code_version"]["sha256"]
+                                   == CM.code_version()["sha256"])
     ctx.write_json("mcu_models", {"rows": rows, "hand_port": hand, "check": check, "results": full})
+    if not check["code_costs_current"]:
+        ctx.note("The code layer's constants were derived on other versions of the harness/compiler/"
+                 "emulator than the ones run here; re-derive them with `python -m pfbench.mcu.costmodel "
+                 "--derive --write`.")
 
     for _, r in ok.iterrows():
         ctx.compare(f"{r.model} {r.precision}: cost model (a), cycles per particle-step at M={steps} "

@@ -159,3 +159,19 @@ def test_libcost_rederives_a_table_entry():
     add = libcost.run_op(prog, core, "add")["cycles"]["nominal"]
     per_call = (add - base) / libcost.K + core.timing()["cycles"]["int_alu"]
     assert per_call == pytest.approx(load_table(core.cycles_path).cost("float", "add"), abs=0.06)
+
+
+def test_fit_basis_selects_the_time_layer():
+    # the code layer (what `mcu emulate --model` runs) gives other per-step times than the board
+    # layer, and its step times agree with predict(basis="code") at the N_p it returns.
+    # Catches --basis ignored by fit, or fit and predict using different layers.
+    kw = dict(cores=["m4"], precisions=("float",))
+    board = cm.fit("ob1", 200, 1000.0, **kw)
+    code = cm.fit("ob1", 200, 1000.0, basis="code", **kw)
+    assert board["basis"] == "board" and code["basis"] == "code"
+    rb, rc = board["rows"][0], code["rows"][0]
+    assert rb["max_particles"] != rc["max_particles"]
+    p = cm.predict("ob1", 100, rc["max_particles"], "float", core="m4", basis="code", memory=False)
+    assert p["predicted_ms"] * 1e3 / 100 == pytest.approx(rc["step_us"], rel=0.02)
+    with pytest.raises(PfbenchError, match="unknown basis"):
+        cm.fit("ob1", 200, 1000.0, basis="nope", **kw)
