@@ -30,7 +30,7 @@ import numpy as np
 from ..backends.cache import cache_root
 from ..mcu.toolchain import C_DIR
 
-SOURCES = ("host_bench.c", "pf_ob1.c")
+SOURCES = ("host_bench.c", "pf_ob1.c", "pf_common.h", "pf_model.h")
 FLAGS = ("-O3", "-march=native")
 #: largest N_p the host build accepts (static arrays of pf_ob1.c: 3 x 8 bytes per particle,
 #: only the pages a run touches are ever allocated)

@@ -294,7 +294,7 @@ def code_terms(counts: dict, precision: str, table: CycleTable, n_steps: int, n_
 def code_version() -> dict:
     """Hashes of the sources whose compiled code the derivation emulates."""
     here = Path(__file__).resolve().parent
-    files = ["c/pf_model.c", "c/pf_model.h", "c/nrt_shim.c", "modelcode.py", "emulate.py", "toolchain.py",
+    files = ["c/pf_model.c", "c/pf_model.h", "c/pf_common.h", "c/nrt_shim.c", "modelcode.py", "emulate.py", "toolchain.py",
              "counting.py", "data/cortex_m4_timing.json", "data/cortex_m4_cycles.json"]
     h = hashlib.sha256()
     for f in files:

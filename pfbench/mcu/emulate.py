@@ -318,7 +318,24 @@ class RunResult:
     ram: dict = field(default_factory=dict)     # see ram_usage()
 
 
-def _image_with_inputs(prog: Program, inputs: dict) -> bytearray:
+def machine(image: bytes, cpu: str, stack_top: int):
+    """A unicorn Cortex-M (the CPU model of ``cpu``, :mod:`pfbench.mcu.cores`) with the memory
+    map of ``c/stm32f407.ld`` (1 MiB flash at FLASH, 128 KiB RAM at RAM) and the System Control
+    Space (the CPACR write of Reset_Handler), ``image`` in flash and SP at ``stack_top``."""
+    from unicorn import UC_ARCH_ARM, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
+    from unicorn import arm_const as A
+
+    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+    uc.ctl_set_cpu_model(getattr(A, _cores.by_cpu(cpu).unicorn_cpu))
+    uc.mem_map(FLASH, 1 << 20)
+    uc.mem_map(RAM, 128 << 10)
+    uc.mem_map(0xE000E000, 0x1000)
+    uc.mem_write(FLASH, bytes(image))
+    uc.reg_write(A.UC_ARM_REG_SP, stack_top)
+    return uc
+
+
+def image_with_inputs(prog: Program, inputs: dict) -> bytearray:
     """The flash image with ``inputs`` ({symbol: bytes}) written into the initialised-data
     image of those symbols (Reset_Handler copies it to RAM, as for any initialised global)."""
     sym = prog.symbols
@@ -337,29 +354,21 @@ def _image_with_inputs(prog: Program, inputs: dict) -> bytearray:
 
 
 def execute(prog: Program, inputs: dict, precision: str, steps: int, particles: int,
-            timeout_s: float = 300.0):
-    """Emulate ``prog`` from ``Reset_Handler`` to ``pf_finish`` with ``inputs`` written first.
+            timeout_s: float = 300.0, stop: str = "pf_finish"):
+    """Emulate ``prog`` from ``Reset_Handler`` to ``stop`` with ``inputs`` written first.
 
     An image is "a Program + a way to write its inputs": the caller packs its inputs
     ({symbol: bytes}) and reads its results from the returned ``uc`` (unicorn instance).
     Returns ``(RunResult, uc)``; the RunResult's ``ram`` holds the static RAM (.data, .bss)
     and the stack and heap actually used (the free RAM is painted before the run)."""
-    from unicorn import UC_ARCH_ARM, UC_HOOK_BLOCK, UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError
+    from unicorn import UC_HOOK_BLOCK, UcError
     from unicorn import arm_const as A
 
     sym = prog.symbols
-    image = _image_with_inputs(prog, inputs)
-    flash, ram = FLASH, RAM
     ram_size = sym["_estack"] - RAM
-    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
-    uc.ctl_set_cpu_model(getattr(A, _cores.by_cpu(prog.cpu).unicorn_cpu))
-    uc.mem_map(flash, 1 << 20)
-    uc.mem_map(ram, 128 << 10)
-    uc.mem_map(0xE000E000, 0x1000)  # System Control Space (CPACR write in Reset_Handler)
-    uc.mem_write(flash, bytes(image))
+    uc = machine(image_with_inputs(prog, inputs), prog.cpu, sym["_estack"])
     free_lo = sym.get("_end", sym["_ebss"])
     uc.mem_write(free_lo, bytes([PAINT]) * (sym["_estack"] - free_lo))
-    uc.reg_write(A.UC_ARM_REG_SP, sym["_estack"])
 
     hits: dict = {}
     taken: dict = {}
@@ -412,8 +421,7 @@ def execute(prog: Program, inputs: dict, precision: str, steps: int, particles: 
 
     uc.hook_add(UC_HOOK_BLOCK, hook)
     try:
-        uc.emu_start(sym["Reset_Handler"] | 1, sym["pf_finish"] & ~1,
-                     timeout=int(timeout_s * 1e6))
+        uc.emu_start(sym["Reset_Handler"] | 1, sym[stop] & ~1, timeout=int(timeout_s * 1e6))
     except UcError as exc:
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         ins = prog.insns.get(pc)
@@ -421,8 +429,8 @@ def execute(prog: Program, inputs: dict, precision: str, steps: int, particles: 
         raise PfbenchError(f"emulation failed at 0x{pc:08x} ({prog.function_at(pc)}{what}) on "
                            f"unicorn's {prog.cpu}: {exc}")
     pc = uc.reg_read(A.UC_ARM_REG_PC)
-    if pc != sym["pf_finish"] & ~1:
-        raise PfbenchError(f"emulation stopped at 0x{pc:08x} before pf_finish (timeout?)")
+    if pc != sym[stop] & ~1:
+        raise PfbenchError(f"emulation stopped at 0x{pc:08x} before {stop} (timeout?)")
 
     P = np.array([prog.timing["scenarios"][s]["branch_refill_P"] for s in SCENARIOS], float)
     n_ins, classes, cycles = 0, np.zeros(len(CLASSES)), np.zeros(len(SCENARIOS))

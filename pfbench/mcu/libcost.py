@@ -38,9 +38,6 @@ from __future__ import annotations
 
 import json
 import struct
-import subprocess
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
@@ -149,119 +146,40 @@ def _args(op: str, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np
 
 def build(core: _cores.Core, precision: str, force: bool = False) -> toolchain.Build:
     """Build (cached under toolchain.cache_root()/libcost) the micro-benchmark for a core."""
-    why = [m for m in toolchain.missing() if "unicorn" not in m]
-    if why:
-        raise PfbenchError("; ".join(why))
-    import hashlib
-
-    flags = list(core.gcc[precision]) + ["-g", "-ffunction-sections", "-nostartfiles",
-                                         "-specs=nano.specs", "-specs=nosys.specs"]
+    toolchain.check_tools()
+    flags = [*core.gcc[precision], *toolchain.BARE_METAL]
     flags += ["-DPF_FLOAT", "-Ofast"] if precision == "float" else ["-O2"]
     src = _source()
-    c_dir = toolchain.C_DIR
-    h = hashlib.sha256((src + "\0".join(flags) + toolchain.compiler_version()).encode())
-    for name in ("startup.c", toolchain.LINKER_SCRIPT):
-        h.update((c_dir / name).read_bytes())
-    out = (toolchain.cache_root() / "libcost" / f"{core.key}-{precision}-{h.hexdigest()[:16]}").resolve()
-    files = dict(elf=out / "bench.elf", bin=out / "bench.bin", disasm=out / "bench.dis",
-                 symbols=out / "bench.nm", user_symbols=out / "bench_user.nm")
-    if force or not all(p.exists() for p in files.values()):
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            t = Path(tmp)
-            (t / "bench.c").write_text(src)
-            cmds = [[toolchain.GCC, *flags, "-T", str(c_dir / toolchain.LINKER_SCRIPT), "bench.c",
-                     str(c_dir / "startup.c"), "-lm", "-o", str(files["elf"])],
-                    [toolchain.GCC, *flags, "-c", "bench.c", "-o", "bench.o"],
-                    ["arm-none-eabi-objcopy", "-O", "binary", str(files["elf"]), str(files["bin"])]]
-            for cmd in cmds:
-                r = subprocess.run(cmd, cwd=t, capture_output=True, text=True, timeout=300)
-                if r.returncode:
-                    raise PfbenchError(f"libcost build for {core.key}/{precision} failed: "
-                                       f"{r.stderr.strip().splitlines()[-1:]}")
-            for key, cmd in (("disasm", ["arm-none-eabi-objdump", "-d", str(files["elf"])]),
-                             ("symbols", ["arm-none-eabi-nm", "-n", "-S", str(files["elf"])]),
-                             ("user_symbols", ["arm-none-eabi-nm", "bench.o"])):
-                r = subprocess.run(cmd, cwd=t, capture_output=True, text=True, timeout=300, check=True)
-                files[key].write_text(r.stdout)
-    return toolchain.Build(precision=precision, label=f"libcost-{core.key}", cflags=tuple(flags), **files)
+
+    def make(tmp):
+        (tmp / "bench.c").write_text(src)
+        toolchain.run_tool([toolchain.GCC, *flags, "-c", "bench.c", "-o", "bench.o"], tmp)
+        toolchain.link(tmp, "bench", flags, ["bench.c"], ["bench.o"])
+
+    return toolchain.image(f"libcost/{core.key}-{precision}", [("bench.c", src)], "bench", precision,
+                           f"libcost-{core.key}", tuple(flags), make, force)
+
+
+def run_op(prog, core: _cores.Core, op: str, seed: int = 0) -> dict:
+    """Emulate the loop of ``op``; return total cycles per scenario and instruction count."""
+    from .emulate import execute
+
+    a, b, ia = _args(op, np.random.default_rng(seed))
+    fmt = "f" if prog.build.precision == "float" else "d"
+    inputs = {"bench_cfg": struct.pack("<ii", list(_OPS).index(op), 0),
+              "arg_a": struct.pack(f"<{K}{fmt}", *a), "arg_b": struct.pack(f"<{K}{fmt}", *b),
+              "arg_i": struct.pack(f"<{K}i", *ia)}
+    try:
+        r, _uc = execute(prog, inputs, prog.build.precision, 1, 1, timeout_s=120.0, stop="bench_finish")
+    except PfbenchError as exc:
+        raise PfbenchError(f"libcost {core.key}/{op}: {exc}") from None
+    return {"cycles": r.cycles, "instructions": r.instructions}
 
 
 def _program(core: _cores.Core, precision: str):
     from .emulate import Program
 
-    prog = Program(build(core, precision))
-    prog.timing = core.timing()     # this core's timing table (Program defaults to the M4 one)
-    prog._blocks.clear()
-    return prog
-
-
-def run_op(prog, core: _cores.Core, op: str, seed: int = 0) -> dict:
-    """Emulate the loop of ``op``; return total cycles per scenario and instruction count."""
-    from unicorn import UC_ARCH_ARM, UC_HOOK_BLOCK, UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError
-    from unicorn import arm_const as A
-
-    from .emulate import SCENARIOS
-
-    sym = prog.symbols
-    image = bytearray(prog.build.bin.read_bytes())
-    flash = 0x08000000
-
-    def patch(name, data):
-        off = sym["_sidata"] - flash + (sym[name] - sym["_sdata"])
-        image[off:off + len(data)] = data
-
-    a, b, ia = _args(op, np.random.default_rng(seed))
-    fmt = "f" if prog.build.precision == "float" else "d"
-    patch("bench_cfg", struct.pack("<ii", list(_OPS).index(op), 0))
-    patch("arg_a", struct.pack(f"<{K}{fmt}", *a))
-    patch("arg_b", struct.pack(f"<{K}{fmt}", *b))
-    patch("arg_i", struct.pack(f"<{K}i", *ia))
-    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
-    uc.ctl_set_cpu_model(getattr(A, core.unicorn_cpu))
-    uc.mem_map(flash, 1 << 20)
-    uc.mem_map(0x20000000, 128 << 10)
-    uc.mem_map(0xE000E000, 0x1000)
-    uc.mem_write(flash, bytes(image))
-    uc.reg_write(A.UC_ARM_REG_SP, sym["_estack"])
-    hits: dict = {}
-    taken: dict = {}
-    state = {"prev": None, "end": 0, "kind": None}
-
-    def hook(_uc, addr, size, _d):
-        kind = state["kind"]
-        if kind is not None and kind[0] == "c" and addr != state["end"]:
-            taken[state["prev"]] = taken.get(state["prev"], 0) + 1
-        key = (addr, size)
-        hits[key] = hits.get(key, 0) + 1
-        state["prev"], state["end"], state["kind"] = key, addr + size, prog.block(addr, size)[3]
-
-    uc.hook_add(UC_HOOK_BLOCK, hook)
-    stop = sym["bench_finish"] & ~1
-    try:
-        uc.emu_start(sym["Reset_Handler"] | 1, stop, timeout=120_000_000)
-    except UcError as exc:
-        pc = uc.reg_read(A.UC_ARM_REG_PC)
-        raise PfbenchError(f"libcost {core.key}/{op}: emulation failed at 0x{pc:08x} "
-                           f"({prog.function_at(pc)}): {exc}") from None
-    if uc.reg_read(A.UC_ARM_REG_PC) != stop:
-        raise PfbenchError(f"libcost {core.key}/{op}: emulation stopped early")
-    P = np.array([prog.timing["scenarios"][s]["branch_refill_P"] for s in SCENARIOS], float)
-    f64_extra = prog.timing["cycles"].get("fpu_divsqrt_f64", prog.timing["cycles"]["fpu_divsqrt"]) \
-        - prog.timing["cycles"]["fpu_divsqrt"]
-    cyc = np.zeros(len(SCENARIOS))
-    n_ins = 0
-    for key, h in hits.items():
-        n, _cnt, c, kind, _f = prog.block(*key)
-        n_taken = h if kind in ("jump", "call") else taken.get(key, 0)
-        cyc += h * c + n_taken * P
-        n_ins += h * n
-        if f64_extra:
-            n64 = sum(1 for addr in range(key[0], key[0] + key[1], 2)
-                      if (ins := prog.insns.get(addr)) is not None
-                      and ins.mnemonic.split(".")[0] in ("vdiv", "vsqrt") and ".f64" in ins.mnemonic)
-            cyc += h * n64 * f64_extra
-    return {"cycles": dict(zip(SCENARIOS, cyc.tolist())), "instructions": n_ins}
+    return Program(build(core, precision), core=core.key)
 
 
 def measure(core: _cores.Core | str, precision: str, seed: int = 0) -> dict:

@@ -30,14 +30,14 @@ How (all with the tools the numba backend already depends on):
    it when :attr:`ModelObject.needs_nrt` (freed temporaries go on a free list and are reused,
    not returned to malloc). Matrix products (``@``, ``np.dot``) call numba's BLAS entry points:
    these are compiled INTO the model module (:data:`_BLAS`, numba-compiled loops) so LLVM
-   inlines and specialises them per call site; the shim keeps linkable C versions.
+   inlines and specialises them per call site.
 
 Precision. ``precision="double"`` compiles the source as it is. ``precision="float"`` compiles a
 float32 rewrite of the source (and of the helpers it calls): float literals, ``np.pi``/``np.e``
 and module-level float constants become float32 constants, integer literals in arithmetic become
 float32 (not indices, shapes, ``range`` bounds or exponents), ``np.zeros/ones/empty/full/eye``
 get ``dtype=np.float32``, every arithmetic result passes a float64 -> float32 narrowing ufunc
-(:func:`_narrow`), ``np.cbrt`` becomes a float32 version, and the parameters and inputs are
+(:func:`_narrow`), ``np.cbrt`` becomes C's ``cbrtf``, and the parameters and inputs are
 float32. Whatever still runs in double
 (e.g. ``np.cos(1.2 * t)`` with the integer step ``t``: once per tile, not per particle) is counted
 in :attr:`ModelObject.double_ops` / :attr:`ModelObject.double_loop_ops` (on a single-precision M4F
@@ -63,10 +63,8 @@ import json
 import os
 import pickle
 import re
-import shutil
 import subprocess
 import sys
-import tempfile
 import textwrap
 import types as _pytypes
 from dataclasses import dataclass, field
@@ -75,7 +73,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, PfbenchError, UnsupportedError
-from . import cores
+from . import cores, toolchain
 
 C_DIR = Path(__file__).resolve().parent / "c"
 SHIM = C_DIR / "nrt_shim.c"
@@ -123,7 +121,6 @@ FUNCTIONS = {
 SHIM_SYMBOLS = frozenset({
     "NRT_MemInfo_alloc_aligned", "NRT_MemInfo_alloc_safe_aligned", "NRT_MemInfo_call_dtor",
     "NRT_Allocate", "NRT_Free", "NRT_MemInfo_alloc", "NRT_MemInfo_alloc_safe",
-    "numba_xxgemm", "numba_xxgemv", "numba_xxdot",
 })
 _LIBM = ("sin cos tan asin acos atan atan2 sinh cosh tanh asinh acosh atanh exp exp2 expm1 log "
          "log2 log10 log1p pow sqrt cbrt hypot fabs floor ceil trunc round rint nearbyint fmod "
@@ -208,9 +205,7 @@ def _freeze(p) -> bytes:
 
 
 def cache_dir() -> Path:
-    from .toolchain import cache_root
-
-    return (cache_root() / "models").resolve()
+    return (toolchain.cache_root() / "models").resolve()
 
 
 def compile_model(spec, precision: str = "float", cpu: str = "cortex-m4",
@@ -246,33 +241,22 @@ def compile_model(spec, precision: str = "float", cpu: str = "cortex-m4",
         h.update(part.encode() + b"\0")
     h.update(_freeze(p))
     out = cache_dir() / h.hexdigest()[:20]
-    meta_path = out / "meta.json"
-    if not meta_path.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=out.name + ".", dir=out.parent))
-        try:
-            job = {"module": cls.__module__, "qualname": cls.__qualname__, "file": path,
-                   "params": p, "dims": dims, "precision": precision, "cpu": cpu,
-                   "label": label, "out": str(tmp)}
-            with open(tmp / "job.pkl", "wb") as f:
-                pickle.dump(job, f)
-            _run_worker(tmp / "job.pkl")
-            res = json.loads((tmp / "result.json").read_text())
-            if "error" in res:
-                raise UnsupportedError(res["error"])
-            (tmp / "job.pkl").unlink()
-            (tmp / "result.json").replace(tmp / "meta.json")
-            try:
-                os.replace(tmp, out)
-            except OSError:  # another process finished the same compile first: use theirs
-                if not meta_path.exists():
-                    raise
-        finally:
-            if tmp.exists():
-                shutil.rmtree(tmp, ignore_errors=True)
+
+    def make(tmp):
+        job = {"module": cls.__module__, "qualname": cls.__qualname__, "file": path, "params": p,
+               "dims": dims, "precision": precision, "cpu": cpu, "label": label, "out": str(tmp)}
+        with open(tmp / "job.pkl", "wb") as f:
+            pickle.dump(job, f)
+        _run_worker(tmp / "job.pkl")
+        res = json.loads((tmp / "result.json").read_text())
+        if "error" in res:
+            raise UnsupportedError(res["error"])
+        (tmp / "job.pkl").unlink()
+        (tmp / "result.json").replace(tmp / "meta.json")
+
+    meta_path = toolchain.cached(out, ("meta.json", "model.o", "model.ll"), make)["meta.json"]
     meta = json.loads(meta_path.read_text())
-    defines = (f"-DPFM_NX={dims['n_x']}", f"-DPFM_NY={dims['n_y']}", f"-DPFM_NU={dims['n_u']}",
-               f"-DPFM_NNOISE={dims['n_noise']}") + (("-DPF_FLOAT",) if precision == "float" else ())
+    defines = tuple(toolchain.dims_flags(**dims)) + (("-DPF_FLOAT",) if precision == "float" else ())
     return ModelObject(model=label, precision=precision, cpu=cpu, obj=out / "model.o",
                        defines=defines, needs_nrt=bool(meta["needs_nrt"]),
                        double_ops=meta["double_ops"], double_loop_ops=meta["double_loop_ops"],
@@ -372,18 +356,22 @@ class _Float32Rewriter(ast.NodeTransformer):
             return ast.copy_location(self._const(node.value), node)
         return node
 
-    def visit_Name(self, node):
+    def _global_float(self, node):
+        """A float global (``np.pi``, a module constant) read by ``node`` as a float32 constant,
+        else None."""
         if isinstance(node.ctx, ast.Load) and not self.protect:
             v = self._float_value(node)
             if v is not None:
                 return ast.copy_location(self._const(v), node)
-        return node
+        return None
+
+    def visit_Name(self, node):
+        return self._global_float(node) or node
 
     def visit_Attribute(self, node):
-        if isinstance(node.ctx, ast.Load) and not self.protect:
-            v = self._float_value(node)
-            if v is not None:
-                return ast.copy_location(self._const(v), node)
+        const = self._global_float(node)
+        if const is not None:
+            return const
         self.generic_visit(node)
         return node
 
@@ -1068,47 +1056,20 @@ def _optimise(llvm, tm, mod):
 _MAIN = "int main(void) { return 0; }\n"
 
 
-def link_test_image(mo: ModelObject) -> Path:
-    """An ELF with the model object, the NRT shim, newlib's libm, startup.c and a trivial main
-    (for :func:`call_on_target`); cached next to the object."""
-    from . import toolchain
+def link_test_image(mo: ModelObject):
+    """An image (:class:`pfbench.mcu.toolchain.Build`) of the model object, the NRT shim,
+    newlib's libm, startup.c and a trivial main, for :func:`call_on_target` (cached)."""
+    toolchain.check_tools()
+    flags = (*mo.gcc_flags, "-O2", *toolchain.BARE_METAL, *mo.defines)
 
-    why = [m for m in toolchain.missing() if "unicorn" not in m]
-    if why:
-        raise PfbenchError("; ".join(why))
-    flags = [*mo.gcc_flags, "-O2", "-g", "-ffunction-sections", "-nostartfiles",
-             "-specs=nano.specs", "-specs=nosys.specs", *mo.defines]
-    h = hashlib.sha256(mo.obj.read_bytes())
-    for p in (SHIM, C_DIR / "startup.c", C_DIR / toolchain.LINKER_SCRIPT):
-        h.update(p.read_bytes())
-    h.update(" ".join(flags).encode() + toolchain.compiler_version().encode())
-    elf = mo.obj.parent / f"test-{h.hexdigest()[:12]}.elf"
-    if not elf.exists():
-        tmp = Path(tempfile.mkdtemp(prefix="link.", dir=mo.obj.parent))
-        try:
-            (tmp / "main.c").write_text(_MAIN)
-            cmd = [toolchain.GCC, *flags, "-T", str(C_DIR / toolchain.LINKER_SCRIPT),
-                   str(C_DIR / "startup.c"), str(SHIM), "main.c", str(Path(mo.obj).resolve()), "-lm",
-                   "-o", "t.elf"]
-            res = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=300)
-            if res.returncode != 0:
-                errs = [ln for ln in res.stderr.splitlines()
-                        if "error" in ln or "undefined reference" in ln] or ["?"]
-                raise PfbenchError("linking the model object failed: " + errs[0].strip())
-            os.replace(tmp / "t.elf", elf)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-    return elf
+    def make(tmp):
+        (tmp / "main.c").write_text(_MAIN)
+        toolchain.run_tool([toolchain.GCC, *flags, "-c", "main.c", "-o", "main.o"], tmp)
+        toolchain.link(tmp, "t", flags, ["main.o", SHIM, Path(mo.obj).resolve()], [Path(mo.obj).resolve()])
 
-
-def _elf_symbols(elf: Path) -> dict:
-    res = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True)
-    out = {}
-    for line in res.stdout.splitlines():
-        parts = line.split()
-        if len(parts) == 3:
-            out[parts[2]] = int(parts[0], 16)
-    return out
+    return toolchain.image(f"models/test-{mo.cpu}-{mo.precision}",
+                           [("model.o", Path(mo.obj).read_bytes()), ("shim", SHIM.read_bytes())],
+                           "t", mo.precision, f"{mo.model} test image", flags, make)
 
 
 def call_on_target(mo: ModelObject, function: str, inputs: dict, *, count: bool = False):
@@ -1124,29 +1085,22 @@ def call_on_target(mo: ModelObject, function: str, inputs: dict, *, count: bool 
     """
     import struct
 
-    from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError
+    from unicorn import UC_HOOK_CODE, UcError
     from unicorn import arm_const as A
+
+    from .emulate import Program, machine
 
     if function not in FUNCTIONS:
         raise InputError(f"function must be one of {', '.join(FUNCTIONS)}, got {function!r}")
-    elf = link_test_image(mo)
-    binf = elf.with_suffix(".bin")
-    if not binf.exists():
-        subprocess.run(["arm-none-eabi-objcopy", "-O", "binary", str(elf), str(binf)], check=True)
-    sym = _elf_symbols(elf)
+    build = link_test_image(mo)
+    sym = Program(build, core=cores.by_cpu(mo.cpu).key).symbols
     real = np.float32 if mo.precision == "float" else np.float64
     x = np.ascontiguousarray(inputs["x"], dtype=real).reshape(-1, mo.n_x)
     n = x.shape[0]
     u = np.ascontiguousarray(inputs.get("u", np.zeros(mo.n_u)), dtype=real).reshape(mo.n_u)
     t = int(inputs.get("t", 0))
-    flash, ram, scratch = 0x08000000, 0x20000000, 0x30000000
-    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
-    uc.ctl_set_cpu_model(getattr(A, cores.by_cpu(mo.cpu).unicorn_cpu))
-    uc.mem_map(flash, 1 << 20)
-    uc.mem_map(ram, 128 << 10)
-    uc.mem_map(0xE000E000, 0x1000)
-    uc.mem_write(flash, binf.read_bytes())
-    uc.reg_write(A.UC_ARM_REG_SP, sym["_estack"])
+    scratch = 0x30000000  # the call's arrays, outside the image's RAM
+    uc = machine(build.bin.read_bytes(), mo.cpu, sym["_estack"])
     main = sym["main"] & ~1
     try:  # .data/.bss init and FPU enable, up to main
         uc.emu_start(sym["Reset_Handler"] | 1, main, timeout=10_000_000)

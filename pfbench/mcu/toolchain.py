@@ -30,12 +30,13 @@ from pathlib import Path
 from ..errors import InputError, PfbenchError, UnsupportedError
 
 C_DIR = Path(__file__).resolve().parent / "c"
-SOURCES = ("pf_ob1.c", "startup.c")
+SOURCES = ("pf_ob1.c", "pf_common.h", "pf_model.h")
 LINKER_SCRIPT = "stm32f407.ld"
 GCC = "arm-none-eabi-gcc"
 
-_COMMON = ["-mcpu=cortex-m4", "-mthumb", "-g", "-ffunction-sections", "-nostartfiles",
-           "-specs=nano.specs", "-specs=nosys.specs"]
+#: flags of every bare-metal image (startup.c, no host start files, newlib-nano, no syscalls)
+BARE_METAL = ["-g", "-ffunction-sections", "-nostartfiles", "-specs=nano.specs", "-specs=nosys.specs"]
+_COMMON = ["-mcpu=cortex-m4", "-mthumb", *BARE_METAL]
 
 #: precision -> (Table 2 label, compiler flags).  ``opt`` replaces the default -O level.
 BUILDS = {
@@ -108,7 +109,7 @@ def cache_root() -> Path:
     return Path(base) / "mcu"
 
 
-def _run(cmd: list[str], cwd: Path, stdout=None) -> None:
+def run_tool(cmd: list[str], cwd: Path, stdout=None) -> None:
     res = subprocess.run(cmd, cwd=cwd, stdout=stdout or subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, timeout=300)
     if res.returncode != 0:
@@ -116,8 +117,8 @@ def _run(cmd: list[str], cwd: Path, stdout=None) -> None:
                            f"{res.stderr.strip().splitlines()[-1] if res.stderr.strip() else ''}")
 
 
-def _key(parts) -> str:
-    """Hash of (name, bytes) pairs + the compiler version: the cache key of a build."""
+def cache_key(parts) -> str:
+    """Hash of (name, bytes or text) pairs + the compiler version: the cache key of a build."""
     h = hashlib.sha256()
     for name, data in parts:
         h.update(str(name).encode() + b"\0" + (data if isinstance(data, bytes) else
@@ -126,7 +127,7 @@ def _key(parts) -> str:
     return h.hexdigest()[:16]
 
 
-def _cached(out: Path, names: tuple[str, ...], make, force: bool = False) -> dict:
+def cached(out: Path, names: tuple[str, ...], make, force: bool = False) -> dict:
     """``{name: out/name}``; when any is missing (or ``force``), ``make(tmp)`` builds them in a
     fresh directory that then atomically becomes ``out`` (a concurrent identical build wins)."""
     files = {n: out / n for n in names}
@@ -148,47 +149,57 @@ def _cached(out: Path, names: tuple[str, ...], make, force: bool = False) -> dic
     return files
 
 
-def _link(tmp: Path, stem: str, cflags, inputs, user_objects) -> None:
+def link(tmp: Path, stem: str, cflags, inputs, user_objects) -> None:
     """Link ``inputs`` (sources/objects) with startup.c and the linker script into
     ``stem.elf``; write ``stem.bin`` (flash image), ``stem.dis`` (objdump -d), ``stem.nm``
     (nm -n -S) and ``stem_user.nm`` (nm of ``user_objects``: the code we wrote or compiled)."""
-    _run([GCC, *cflags, "-T", str(C_DIR / LINKER_SCRIPT), *map(str, inputs),
-          str(C_DIR / "startup.c"), "-lm", "-o", f"{stem}.elf"], tmp)
-    _run(["arm-none-eabi-objcopy", "-O", "binary", f"{stem}.elf", f"{stem}.bin"], tmp)
+    run_tool([GCC, *cflags, "-T", str(C_DIR / LINKER_SCRIPT), *map(str, inputs),
+              str(C_DIR / "startup.c"), "-lm", "-o", f"{stem}.elf"], tmp)
+    run_tool(["arm-none-eabi-objcopy", "-O", "binary", f"{stem}.elf", f"{stem}.bin"], tmp)
     with open(tmp / f"{stem}.dis", "w") as f:
-        _run(["arm-none-eabi-objdump", "-d", f"{stem}.elf"], tmp, stdout=f)
+        run_tool(["arm-none-eabi-objdump", "-d", f"{stem}.elf"], tmp, stdout=f)
     with open(tmp / f"{stem}.nm", "w") as f:
-        _run(["arm-none-eabi-nm", "-n", "-S", f"{stem}.elf"], tmp, stdout=f)
+        run_tool(["arm-none-eabi-nm", "-n", "-S", f"{stem}.elf"], tmp, stdout=f)
     with open(tmp / f"{stem}_user.nm", "w") as f:
-        _run(["arm-none-eabi-nm", *map(str, user_objects)], tmp, stdout=f)
+        run_tool(["arm-none-eabi-nm", *map(str, user_objects)], tmp, stdout=f)
 
 
-def _check_tools() -> None:
+def check_tools() -> None:
+    """A one-line PfbenchError unless the cross toolchain and newlib are present."""
     why = [m for m in missing() if "unicorn" not in m]
     if why:
         raise PfbenchError("; ".join(why))
+
+
+def image(prefix: str, key_parts, stem: str, precision: str, label: str, cflags: tuple, make,
+          force: bool = False, **fields) -> Build:
+    """A linked image, cached under ``cache_root()/<prefix>-<key>``: ``make(tmp)`` compiles into
+    ``tmp`` and calls :func:`link` with ``stem``. The key covers ``key_parts`` ((name, bytes)
+    of the sources), startup.c, the linker script, ``cflags`` and the compiler; ``fields`` go
+    to the :class:`Build`."""
+    key = cache_key([*key_parts, *((n, (C_DIR / n).read_bytes()) for n in ("startup.c", LINKER_SCRIPT)),
+                     ("cflags", "\0".join(cflags))])
+    f = cached(cache_root() / f"{prefix}-{key}",
+                tuple(stem + ext for ext in (".elf", ".bin", ".dis", ".nm", "_user.nm")), make, force)
+    return Build(precision=precision, label=label, cflags=tuple(cflags), elf=f[f"{stem}.elf"],
+                 bin=f[f"{stem}.bin"], disasm=f[f"{stem}.dis"], symbols=f[f"{stem}.nm"],
+                 user_symbols=f[f"{stem}_user.nm"], **fields)
 
 
 def build(precision: str = "float", opt: str | None = None, force: bool = False) -> Build:
     """Build (or fetch from the cache) the D(S) (``double``) or D(O) (``float``) image."""
     if precision not in BUILDS:
         raise InputError(f"precision must be one of {sorted(BUILDS)}, got {precision!r}")
-    _check_tools()
+    check_tools()
     label, flags, default_opt = BUILDS[precision]
     cflags = tuple(_COMMON + flags + [opt or default_opt])
-    key = _key([*((n, (C_DIR / n).read_bytes()) for n in (*SOURCES, LINKER_SCRIPT)),
-                ("cflags", "\0".join(cflags))])
-    out = cache_root() / f"{precision}-{key}"
 
     def make(tmp):
-        _run([GCC, *cflags, "-c", str(C_DIR / "pf_ob1.c"), "-o", "pf_ob1.o"], tmp)
-        _link(tmp, "pf_ob1", cflags, [C_DIR / "pf_ob1.c"], ["pf_ob1.o"])
+        run_tool([GCC, *cflags, "-c", str(C_DIR / "pf_ob1.c"), "-o", "pf_ob1.o"], tmp)
+        link(tmp, "pf_ob1", cflags, [C_DIR / "pf_ob1.c"], ["pf_ob1.o"])
 
-    f = _cached(out, ("pf_ob1.elf", "pf_ob1.bin", "pf_ob1.dis", "pf_ob1.nm", "pf_ob1_user.nm"),
-                make, force)
-    return Build(precision=precision, label=label, cflags=cflags, elf=f["pf_ob1.elf"],
-                 bin=f["pf_ob1.bin"], disasm=f["pf_ob1.dis"], symbols=f["pf_ob1.nm"],
-                 user_symbols=f["pf_ob1_user.nm"])
+    return image(precision, [(n, (C_DIR / n).read_bytes()) for n in SOURCES], "pf_ob1", precision,
+                 label, cflags, make, force)
 
 
 # ------------------------------------------------------------------ any model: pf_model.c
@@ -227,9 +238,14 @@ class CModel:
     double_ops: dict = field(default_factory=dict)
 
 
+def dims_flags(n_x: int, n_y: int, n_u: int, n_noise: int) -> list[str]:
+    """The -D flags that give ``pf_model.h`` a model's dimensions."""
+    return [f"-DPFM_NX={int(n_x)}", f"-DPFM_NY={int(n_y)}", f"-DPFM_NU={int(n_u)}",
+            f"-DPFM_NNOISE={int(n_noise)}"]
+
+
 def _dims(mo) -> list[str]:
-    return [f"-DPFM_NX={int(mo.n_x)}", f"-DPFM_NY={int(mo.n_y)}", f"-DPFM_NU={int(mo.n_u)}",
-            f"-DPFM_NNOISE={int(mo.n_noise)}"]
+    return dims_flags(mo.n_x, mo.n_y, mo.n_u, mo.n_noise)
 
 
 def _model_flags(precision: str, cpu: str, opt: str | None, gcc_flags=None) -> list[str]:
@@ -254,16 +270,16 @@ def compile_c_model(source, precision: str, model: str, n_x: int, n_y: int, n_u:
                     defines: tuple = ()) -> CModel:
     """Cross-compile a hand-written C model (``pf_model.h`` ABI) to an object (cached);
     ``defines`` are extra -D flags of the model file (default -O level: -O2)."""
-    _check_tools()
+    check_tools()
     source = Path(source).resolve()
     mo = CModel(model=model, precision=precision, obj=Path(), n_x=n_x, n_y=n_y, n_u=n_u,
                 n_noise=n_noise, cpu=cpu)
     cflags = tuple(_model_flags(precision, cpu, opt or "-O2") + _dims(mo) + list(defines))
-    key = _key([(source.name, source.read_bytes()),
-                ("pf_model.h", (C_DIR / "pf_model.h").read_bytes()),
-                ("cflags", "\0".join(cflags))])
+    key = cache_key([(source.name, source.read_bytes()),
+                     ("pf_model.h", (C_DIR / "pf_model.h").read_bytes()),
+                     ("cflags", "\0".join(cflags))])
     out = cache_root() / f"cmodel-{model}-{precision}-{key}"
-    f = _cached(out, ("model.o",), lambda tmp: _run(
+    f = cached(out, ("model.o",), lambda tmp: run_tool(
         [GCC, *cflags, "-c", str(source), "-o", "model.o"], tmp))
     return CModel(model=model, precision=precision, obj=f["model.o"], n_x=n_x, n_y=n_y, n_u=n_u,
                   n_noise=n_noise, cpu=cpu)
@@ -289,7 +305,7 @@ def build_model(model_object, precision: str | None = None, opt: str | None = No
     for name, v in (("nmax", nmax), ("mmax", mmax), ("tile", tile)):
         if int(v) < 1:
             raise InputError(f"{name} must be >= 1, got {v}")
-    _check_tools()
+    check_tools()
     cpu = getattr(model_object, "cpu", "cortex-m4")
     sizes = [f"-DPF_NMAX={int(nmax)}", f"-DPF_MMAX={int(mmax)}", f"-DPF_TILE={int(tile)}"]
     extra = [d for d in getattr(model_object, "defines", ()) if d not in _dims(model_object)]
@@ -298,27 +314,22 @@ def build_model(model_object, precision: str | None = None, opt: str | None = No
     obj = Path(model_object.obj)
     if not obj.exists():
         raise PfbenchError(f"model object {obj} does not exist")
-    srcs = [HARNESS, "pf_model.h", "startup.c", LINKER_SCRIPT]
+    srcs = [HARNESS, "pf_common.h", "pf_model.h"]
     nrt = bool(getattr(model_object, "needs_nrt", False))
     if nrt:
         if not (C_DIR / NRT_SHIM).exists():
             raise PfbenchError(f"the model needs numba's runtime but {C_DIR / NRT_SHIM} is missing")
         srcs.append(NRT_SHIM)
-    key = _key([*((n, (C_DIR / n).read_bytes()) for n in srcs), ("model.o", obj.read_bytes()),
-                ("cflags", "\0".join(cflags))])
-    out = cache_root() / f"model-{model_object.model.replace(':', '_')}-{precision}-{key}"
 
     def make(tmp):
-        _run([GCC, *cflags, "-c", str(C_DIR / HARNESS), "-o", "harness.o"], tmp)
+        run_tool([GCC, *cflags, "-c", str(C_DIR / HARNESS), "-o", "harness.o"], tmp)
         shutil.copy(obj, tmp / "model.o")
         inputs = ["harness.o", "model.o"] + ([str(C_DIR / NRT_SHIM)] if nrt else [])
-        _link(tmp, "pf_model", cflags, inputs, ["harness.o", "model.o"])
+        link(tmp, "pf_model", cflags, inputs, ["harness.o", "model.o"])
 
-    f = _cached(out, ("pf_model.elf", "pf_model.bin", "pf_model.dis", "pf_model.nm",
-                      "pf_model_user.nm"), make, force)
-    return Build(precision=precision, label=f"{model_object.model} ({precision})", cflags=cflags,
-                 elf=f["pf_model.elf"], bin=f["pf_model.bin"], disasm=f["pf_model.dis"],
-                 symbols=f["pf_model.nm"], user_symbols=f["pf_model_user.nm"],
+    return image(f"model-{model_object.model.replace(':', '_')}-{precision}",
+                 [*((n, (C_DIR / n).read_bytes()) for n in srcs), ("model.o", obj.read_bytes())],
+                 "pf_model", precision, f"{model_object.model} ({precision})", cflags, make, force,
                  model=model_object.model, n_x=int(model_object.n_x), n_y=int(model_object.n_y),
                  n_u=int(model_object.n_u), n_noise=int(model_object.n_noise), nmax=int(nmax),
                  mmax=int(mmax), tile=int(tile))

@@ -180,7 +180,7 @@ def mcu_models(ctx):
              "paper's hand-written C; it is not what the emulator runs and is shown beside, not "
              "checked.")
     if "float" in hand:
-        paper = E.TABLE2[(1000, 1000)][1] * 168e3 / 1e6
+        paper = E.TABLE2[(1000, 1000)][1] * 1e3 * E.timing_table("m4")["clock_mhz"] / 1e6  # ms -> cycles
         hp, comp = hand["float"]["cycles_per_particle_step"], hand["float"]["compiled"]
         ctx.note(f"Why the board layer (b) differs from the emulation, Ob1 float: its float efficiency is "
                  f"fitted to the published D(O) time of [Embedded] Table 2 ({paper:.0f} cycles "

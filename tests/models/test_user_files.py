@@ -50,3 +50,14 @@ def test_cli_runs_a_user_model_by_flag_and_by_environment(readme_model_file):
     assert json.loads(by_flag.stdout)["loglik"] == json.loads(by_env.stdout)["loglik"]
     unknown = _cli(*args)
     assert unknown.returncode == 2 and "unknown model 'user_growth_b'" in unknown.stderr
+
+
+def test_sweep_workers_find_a_user_model(readme_model_file, tmp_path):
+    # sweep tasks run in worker processes: they must import the user's file too (through the
+    # environment the CLI sets). Catches a worker that only knows the built-in models.
+    path = readme_model_file("user_growth_c")
+    out = tmp_path / "sweep.parquet"
+    r = _cli("--models", str(path), "sweep", "--model", "user_growth_c", "--particles", "20,40",
+             "--runs", "2", "--steps", "10", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "4/4 tasks" in r.stdout

@@ -10,10 +10,9 @@
  * stores there, which is correct because the filter is single-threaded and no interrupt
  * handler touches a model's arrays.
  *
- * Also here: numba's BLAS entry points for matrix products (`@`, np.dot) on contiguous float or
- * double arrays, as plain loops (column-major, as numba calls them).  pfbench.mcu.modelcode
- * compiles its own copies of these into the model object (inlined, specialised per call site);
- * these C versions serve objects compiled without them.
+ * Matrix products (`@`, np.dot) call numba's BLAS entry points numba_xxgemm/xxgemv/xxdot:
+ * pfbench.mcu.modelcode compiles those into the model object itself (specialised per call
+ * site), so they are not here.
  */
 #include <stdint.h>
 #include <stdlib.h>
@@ -100,85 +99,4 @@ void NRT_MemInfo_call_dtor(NRT_MemInfo *mi)
     mi->dtor_info = nrt_free_list;
     nrt_free_list = mi;
     nrt_free_count++;
-}
-
-/* numba_xxgemm(kind, transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc): the
- * column-major BLAS ?gemm, C = alpha op(A) op(B) + beta C, kind 's' (float) or 'd' (double). */
-#define GEMM_BODY(T)                                                                          \
-    {                                                                                         \
-        const T *A = (const T *)a, *B = (const T *)b;                                         \
-        T *C = (T *)c, al = *(const T *)alpha, be = *(const T *)beta;                         \
-        for (int64_t j = 0; j < n; j++)                                                       \
-            for (int64_t i = 0; i < m; i++) {                                                 \
-                T s = 0;                                                                      \
-                for (int64_t l = 0; l < k; l++) {                                             \
-                    T av = (transa == 'n' || transa == 'N') ? A[i + l * lda] : A[l + i * lda]; \
-                    T bv = (transb == 'n' || transb == 'N') ? B[l + j * ldb] : B[j + l * ldb]; \
-                    s += av * bv;                                                             \
-                }                                                                             \
-                C[i + j * ldc] = al * s + (be == 0 ? (T)0 : be * C[i + j * ldc]);             \
-            }                                                                                 \
-    }
-
-int numba_xxgemm(char kind, char transa, char transb, int64_t m, int64_t n, int64_t k,
-                 const void *alpha, const void *a, int64_t lda, const void *b, int64_t ldb,
-                 const void *beta, void *c, int64_t ldc)
-{
-    if (kind == 's')
-        GEMM_BODY(float)
-    else if (kind == 'd')
-        GEMM_BODY(double)
-    else
-        return -1;
-    return 0;
-}
-
-/* numba_xxgemv(kind, trans, m, n, alpha, a, lda, x, beta, y): column-major ?gemv with unit
- * strides, y = alpha op(A) x + beta y. */
-#define GEMV_BODY(T)                                                                          \
-    {                                                                                         \
-        const T *A = (const T *)a, *X = (const T *)x;                                         \
-        T *Y = (T *)y, al = *(const T *)alpha, be = *(const T *)beta;                         \
-        int tr = !(trans == 'n' || trans == 'N');                                             \
-        int64_t rows = tr ? n : m, cols = tr ? m : n;                                         \
-        for (int64_t i = 0; i < rows; i++) {                                                  \
-            T s = 0;                                                                          \
-            for (int64_t l = 0; l < cols; l++)                                                \
-                s += (tr ? A[l + i * lda] : A[i + l * lda]) * X[l];                           \
-            Y[i] = al * s + (be == 0 ? (T)0 : be * Y[i]);                                     \
-        }                                                                                     \
-    }
-
-int numba_xxgemv(char kind, char trans, int64_t m, int64_t n, const void *alpha, const void *a,
-                 int64_t lda, const void *x, const void *beta, void *y)
-{
-    if (kind == 's')
-        GEMV_BODY(float)
-    else if (kind == 'd')
-        GEMV_BODY(double)
-    else
-        return -1;
-    return 0;
-}
-
-/* numba_xxdot(kind, conjugate, n, dx, dy, result): *result = dx . dy (unit strides). */
-int numba_xxdot(char kind, char conjugate, int64_t n, const void *dx, const void *dy, void *result)
-{
-    (void)conjugate;
-    if (kind == 's') {
-        const float *a = (const float *)dx, *b = (const float *)dy;
-        float s = 0;
-        for (int64_t i = 0; i < n; i++)
-            s += a[i] * b[i];
-        *(float *)result = s;
-    } else if (kind == 'd') {
-        const double *a = (const double *)dx, *b = (const double *)dy;
-        double s = 0;
-        for (int64_t i = 0; i < n; i++)
-            s += a[i] * b[i];
-        *(double *)result = s;
-    } else {
-        return -1;
-    }
-    return 0;
 }

@@ -28,25 +28,9 @@
  * Static buffers are sized by -DPF_NMAX (particles) and -DPF_MMAX (steps).  The emulator stops
  * when execution reaches pf_finish; results are in pf_result.
  */
-#include <math.h>
 #include <stdint.h>
-#include <stdlib.h>
 
-#include "pf_model.h"
-
-#ifdef PF_FLOAT
-#define L(c) c##f /* literal of the working precision */
-#define COS cosf
-#define SQRT sqrtf
-#define LOG logf
-#define EXP expf
-#else
-#define L(c) c
-#define COS cos
-#define SQRT sqrt
-#define LOG log
-#define EXP exp
-#endif
+#include "pf_common.h"
 
 #ifndef PF_NMAX
 #define PF_NMAX 256
@@ -66,7 +50,6 @@
 #define PF_NU_ALLOC 1
 #endif
 
-#define NOINLINE __attribute__((noinline))
 #define INPUT __attribute__((section(".data.pf_inputs"), aligned(8)))
 
 /* Written by the host into the initialised-data image (copied to RAM by Reset_Handler). */
@@ -95,21 +78,6 @@ static pf_real weight[PF_NMAX];          /* log-weights, then normalised weights
 static pf_real noise[PF_TILE * PFM_NNOISE];
 static pf_real est[PFM_NX];
 
-static const pf_real TWO_PI = L(6.283185307179586);
-
-/* Uniform on (0, 1) from the C library generator (as pf_ob1.c). */
-static NOINLINE pf_real rand_uniform(void)
-{
-    return ((pf_real)rand() + L(1.0)) / ((pf_real)RAND_MAX + L(2.0));
-}
-
-/* Standard normal draw, Box-Muller (one value per call, as pf_ob1.c). */
-NOINLINE pf_real randn(void)
-{
-    pf_real u1 = rand_uniform();
-    pf_real u2 = rand_uniform();
-    return SQRT(L(-2.0) * LOG(u1)) * COS(TWO_PI * u2);
-}
 
 static const pf_real *input_at(int t)
 {
@@ -193,12 +161,6 @@ NOINLINE void pf_resample(int n)
             pf_x[(long)i * PFM_NX + d] = x_prop[(long)j * PFM_NX + d];
         u += step;
     }
-}
-
-/* The emulator stops when execution reaches this address. */
-NOINLINE void pf_finish(void)
-{
-    __asm__ volatile("nop");
 }
 
 int main(void)

@@ -17,33 +17,15 @@
  * The emulator writes the run configuration into `pf_config` before starting and stops
  * when execution reaches `pf_finish`.  Results are left in `pf_result`.
  */
-#include <math.h>
 #include <stdint.h>
-#include <stdlib.h>
 
-#ifdef PF_FLOAT
-typedef float real;
-#define L(c) c##f /* literal of the working precision */
-#define COS cosf
-#define SQRT sqrtf
-#define LOG logf
-#define EXP expf
-#define POW powf
-#else
-typedef double real;
-#define L(c) c
-#define COS cos
-#define SQRT sqrt
-#define LOG log
-#define EXP exp
-#define POW pow
-#endif
+#include "pf_common.h"
+
+typedef pf_real real;
 
 #ifndef PF_NMAX
 #define PF_NMAX 1000 /* largest particle count of Table 2 */
 #endif
-
-#define NOINLINE __attribute__((noinline))
 
 /* Written by the emulator (or left at these defaults on a board). */
 volatile struct {
@@ -62,26 +44,6 @@ static real weight[PF_NMAX]; /* weights */
 static const real Q = L(10.0);     /* var v(k) */
 static const real R_VAR = L(1.0);  /* var n(k) */
 static const real X0 = L(0.1);
-static const real TWO_PI = L(6.283185307179586);
-
-#ifndef PF_HOST_RNG /* host benchmark only (host_bench.c supplies both); never set on the MCU */
-/* Uniform on (0, 1) from the C library generator. */
-static NOINLINE real rand_uniform(void)
-{
-    return ((real)rand() + L(1.0)) / ((real)RAND_MAX + L(2.0));
-}
-
-/* Standard normal draw, Box-Muller (one value per call). */
-NOINLINE real randn(void)
-{
-    real u1 = rand_uniform();
-    real u2 = rand_uniform();
-    return SQRT(L(-2.0) * LOG(u1)) * COS(TWO_PI * u2);
-}
-#else
-static real rand_uniform(void); /* defined after this file by the host harness */
-static real randn(void);
-#endif /* PF_HOST_RNG */
 
 /* Ob1 state transition without noise, [Embedded] eq. 6. */
 static real transition(real x, int k)
@@ -153,12 +115,6 @@ NOINLINE void pf_resample(int n)
     }
     for (int i = 0; i < n; i++)
         x_part[i] = x_new[i];
-}
-
-/* The emulator stops when execution reaches this address. */
-NOINLINE void pf_finish(void)
-{
-    __asm__ volatile("nop");
 }
 
 int main(void)
