@@ -26,7 +26,7 @@ def test_rows_cover_backends_and_dtypes(res):
         assert math.isfinite(r["ns_per_particle_step"]) and r["ns_per_particle_step"] > 0
         assert r["threads"] == (1 if r["backend"] == "numba" else None)  # targets are per 1 thread
     for f in res["floors"]:
-        assert set(f["breakdown_ns"]) == {"normal", "exp", "memory_pass"}
+        assert set(f["breakdown_ns"]) == {"normal", "exp", "exp_engine", "memory_pass"}
         assert all(v > 0 for v in f["breakdown_ns"].values())
 
 
@@ -34,7 +34,8 @@ def test_kernel_parts_are_timed_and_reported(res):
     """Each part of the particle kernel is timed (positive, finite) and the unaccounted rest is the
     whole filter minus the three passes. Catches a part left out of the sum or of the printed line."""
     d = res["kernel_parts"]
-    for k in ("normals", "model", "pass_a", "exp", "pass_b", "resample", "filter"):
+    for k in ("normals", "model", "transition_tile", "transition_flat", "pass_a", "exp", "pass_b", "resample",
+              "filter"):
         assert math.isfinite(d[k]) and d[k] > 0, k
     assert d["rest"] == pytest.approx(d["filter"] - d["pass_a"] - d["pass_b"] - d["resample"])
     assert any(line.startswith("kernel parts") and "resampling + gather" in line for line in main_text(res))

@@ -12,9 +12,12 @@ Fused passes (per step and filter; each particle is touched three times)
 -------------------------------------------------------------------------
 A. draw noise + propagate + log-likelihood + a = lw + ll + running max, in tiles of ``_TILE``
    particles (the model's vectorised ``transition``/``log_likelihood`` run on a tile view, so a
-   model is still written once; tile-by-tile draws are the numbers one big draw gives);
-B. w = exp(a - max) + running sum (the cdf) + weighted sums for the mean, the shifted second moment
-   (shift: the filter's particle 0, so the one-pass variance does not cancel) and sum w^2 (N_eff);
+   model is still written once; tile-by-tile draws are the numbers one big draw gives); the
+   log-weights of the common (bootstrap) step are a branch-free loop and the max keeps four
+   running maxima (:func:`_max`);
+B. w = exp(a - max) (a vectorised loop of its own) + running sum (the cdf) +
+   weighted sums for the mean, the shifted second moment (shift: the filter's particle 0, so the
+   one-pass variance does not cancel) and sum w^2 (N_eff);
 C. resampling: systematic and stratified as a merge that writes the resampled particles straight
    into the second particle buffer (the buffers swap; no index array, no copy back); multinomial and
    residual draw indices (``_resample``) and gather.
@@ -49,13 +52,16 @@ loaded 2-core machine (Ob1 bootstrap, 1 thread, medians of 5): N_p = 10^3: 50.7 
 particle-step, N_p = 10^5: 69 vs 60 ns (float32 vs float64), i.e. no gain: the step is bound by
 the scalar exp, the normal draw, the model's division and the merge's branches, not by memory
 (N_p = 10^5 float64 particles are 0.8 MB, cache-resident), so halving storage cannot pay until
-the models are written dtype-generic (float32 literals) and the exp is vectorised.
+the models are written dtype-generic (float32 literals). (Those timings predate the vectorised
+exp, which runs on the float64 weights and so helps both dtypes equally.)
 """
 import numba as _numba
 import numpy as _np
 from numba.extending import overload as _overload
+from numba.extending import register_jitable as _register_jitable
 
 from pfbench.backends.cache import njit as _njit
+from pfbench.backends.fastexp import exp_scalar as _exp
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.filters.methods import Method as _Method
 
@@ -148,28 +154,70 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
                     xs[s + i, c] = xn[i, c]
             xn = _stored(xn, xs[s:e])
         ll = _log_likelihood(yt, xn, ut, t, p)
-        for i in range(k):
-            j = s + i
-            v = _np.float64(ll[i])
-            if not (v == v) or v == _np.inf:
-                v = -_np.inf
-            elif asir:
-                v = v - lam[j]
+        if first or asir:
+            for i in range(k):
+                j = s + i
+                v = _np.float64(ll[i])
                 if not (v == v) or v == _np.inf:
                     v = -_np.inf
-            if first:
-                lam_out[j] = v
-            a = mlogn + v if flat else lw[j] + v
-            la[j] = a
-            if a > m:
-                m = a
+                elif asir:
+                    v = v - lam[j]
+                    if not (v == v) or v == _np.inf:
+                        v = -_np.inf
+                if first:
+                    lam_out[j] = v
+                la[j] = mlogn + v if flat else lw[j] + v
+        elif flat:  # the bootstrap step: branch-free loops that vectorise
+            for i in range(k):
+                v = _np.float64(ll[i])
+                la[s + i] = mlogn + (v if v < _np.inf else -_np.inf)  # NaN and +inf -> -inf
+        else:
+            for i in range(k):
+                v = _np.float64(ll[i])
+                la[s + i] = lw[s + i] + (v if v < _np.inf else -_np.inf)
+        m = _max(la, s, e, m)
     return m
 
 
-@_njit(nogil=True)
+@_register_jitable
+def _max(a, i0, i1, m):
+    """max(m, a[i0:i1]) for ``a`` without NaN: four running maxima, so the comparisons do not wait
+    on each other (a max is exact in any order; LLVM does not vectorise the reduction itself)."""
+    m0 = m
+    m1 = m
+    m2 = m
+    m3 = m
+    i = i0
+    while i + 4 <= i1:
+        v0 = a[i]
+        v1 = a[i + 1]
+        v2 = a[i + 2]
+        v3 = a[i + 3]
+        m0 = v0 if v0 > m0 else m0
+        m1 = v1 if v1 > m1 else m1
+        m2 = v2 if v2 > m2 else m2
+        m3 = v3 if v3 > m3 else m3
+        i += 4
+    while i < i1:
+        v0 = a[i]
+        m0 = v0 if v0 > m0 else m0
+        i += 1
+    m0 = m1 if m1 > m0 else m0
+    m2 = m3 if m3 > m2 else m2
+    return m2 if m2 > m0 else m0
+
+
+@_njit(nogil=True, error_model="numpy")
 def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
     """Pass B on [i0, i1): w = exp(a - m), block running sum (cdf), and, when ``mom``, the block's
-    sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff)."""
+    sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
+
+    The exponentials are a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
+    LLVM vectorises; the running sums cannot be), so the weights make one extra trip through the
+    cache. (Tiling the two loops, so that trip stays in L1 at large N_p, measured 0.7 ns per
+    particle-step slower at N_p = 1000: 4.2 vs 3.5 ns for the pass.)
+    ``error_model="numpy"``: numba's zero-division check would stop the vectoriser.
+    """
     n_x = xs.shape[1]
     acc = 0.0
     s2 = 0.0
@@ -177,8 +225,9 @@ def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
         bsx[b, c] = 0.0
         bsxx[b, c] = 0.0
     for i in range(i0, i1):
-        w = _np.exp(la[i] - m)
-        wu[i] = w
+        wu[i] = _exp(la[i] - m)
+    for i in range(i0, i1):
+        w = wu[i]
         acc += w
         cdf[i] = acc
         if mom:
@@ -206,8 +255,8 @@ def _first_above(cdf, n, pos):
     return lo
 
 
-@_njit(nogil=True)
-def _merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos):
+@_njit(nogil=True, error_model="numpy")
+def _merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos, kk):
     """Systematic/stratified resampling of output positions [i0, i1), writing the selected particles
     (and ``lam``) into ``dst`` ([Thesis] Alg. 4; [Embedded] Alg. 1 step 5).
 
@@ -220,7 +269,10 @@ def _merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with
     estimated from cdf[j] and corrected by exact comparisons with the positions (normally none),
     output K_j is marked as starting ancestor j + 1 (a later, zero-weight j overwrites the same
     mark), and a running maximum over the marks gives a(i). Same ancestors as the merge for any
-    weights (tested against it). ``anc`` and ``pos`` [i0, i1) are scratch.
+    weights (tested against it). The estimates floor(cdf[j] n / total - shift) + 1 (within one of
+    K_j) are computed tile by tile in a loop of their own, which vectorises (``error_model="numpy"``: no
+    zero-division check in the way), the exact corrections in the next. ``anc`` and ``pos``
+    [i0, i1) and ``kk`` [j0, j1) are int64/float64/int64 scratch (the blocks' j ranges are disjoint).
     """
     n_x = src.shape[1]
     total = cdf[n - 1]
@@ -233,14 +285,18 @@ def _merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with
         anc[i] = j0
     scale = n / total
     shift = 0.5 if strat else u
-    for j in range(j0, j1):  # here i0 < K_j <= i1 - 1
-        c = cdf[j]
-        k = min(max(int(_np.ceil(c * scale - shift)), i0 + 1), i1 - 1)
-        while k > i0 + 1 and pos[k - 1] >= c:
-            k -= 1
-        while k < i1 - 1 and pos[k] < c:
-            k += 1
-        anc[k] = j + 1
+    for s in range(j0, j1, _TILE):  # here i0 < K_j <= i1 - 1
+        e = min(s + _TILE, j1)
+        for j in range(s, e):
+            kk[j] = min(max(_np.int64(cdf[j] * scale - shift) + 1, i0 + 1), i1 - 1)
+        for j in range(s, e):
+            c = cdf[j]
+            k = kk[j]
+            while k > i0 + 1 and pos[k - 1] >= c:
+                k -= 1
+            while k < i1 - 1 and pos[k] < c:
+                k += 1
+            anc[k] = j + 1
     a = j0
     for i in range(i0, i1):
         a = max(a, anc[i])
@@ -300,6 +356,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     for i in range(n):
         lam[i] = 0.0
     idx = _np.empty(n, _np.int64)
+    kk = _np.empty(n, _np.int64)
     bmax = _np.empty(nb)
     bsum = _np.empty(nb)
     bs2 = _np.empty(nb)
@@ -386,7 +443,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             i1 = bounds[b + 1]
                             ubb = brngs[b].random(i1 - i0) if strat else ub
                             _merge_gather(cdf, n, uu, ubb, strat, i0, i1, src, dst, lam_all, lam, fs, idx,
-                                          la)  # la (the log-weights) is free until the next pass A
+                                          la, kk)  # la (the log-weights) is free until the next pass A
                     else:
                         if nb > 1:  # the index schemes see the sequential running sum
                             _cumsum_into(wu, cdf)

@@ -8,16 +8,19 @@ from __future__ import annotations
 import numpy as np
 
 from .cache import njit
+from .fastexp import exp_scalar
 
 
-@njit(nogil=True)
+@njit(nogil=True, error_model="numpy")
 def weigh(lw, ll, wu, cdf):
     """a = lw + ll -> wu = exp(a - max a) and its running sum cdf; returns (max, total, degenerate).
 
     ``lw`` are the normalised log-weights before this step, ``ll`` the log-likelihoods (or
     incremental log-weights). NaN and +inf in ``ll`` count as -inf (zero likelihood) and are
     overwritten so in ``ll``. If every likelihood is zero, the previous weights are kept and
-    ``degenerate`` is True.
+    ``degenerate`` is True. The exponential is :func:`pfbench.backends.fastexp.exp_scalar` in a loop
+    of its own, compiled with ``error_model="numpy"`` (no zero-division check, which would stop
+    LLVM from vectorising it).
     """
     n = lw.shape[0]
     m = -np.inf
@@ -37,11 +40,11 @@ def weigh(lw, ll, wu, cdf):
             wu[i] = lw[i]
             if lw[i] > m:
                 m = lw[i]
+    for i in range(n):  # a loop of its own: it vectorises (the running sum below cannot)
+        wu[i] = exp_scalar(wu[i] - m)
     acc = 0.0
     for i in range(n):
-        e = np.exp(wu[i] - m)
-        wu[i] = e
-        acc += e
+        acc += wu[i]
         cdf[i] = acc
     return m, acc, degenerate
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import resampling
+from .fastexp import exp_array as exp_weights
 from ..filters.methods import Method
 
 
@@ -117,8 +118,9 @@ def _blocks(n: int, block: int):
 
 def _block_weights(a: np.ndarray, m: float, blocks):
     """w = exp(a - m) and the cdf as block offset + running sum within the block (the numba kernel's
-    order), and the total as the block sums added in block order."""
-    wu = np.exp(a - m)
+    order), and the total as the block sums added in block order. The exponential is
+    :func:`pfbench.backends.fastexp.exp_array`, the bits of the numba kernels' vectorised exp."""
+    wu = exp_weights(a - m)
     cdf = np.empty_like(wu)
     total = 0.0
     for sl in blocks:

@@ -10,9 +10,17 @@ ns per particle-step reads as a multiple of what the machine needs at the least.
 * ``normal``: the standard-normal draws alone (numba's ``Generator.standard_normal``, a ziggurat
   on PCG64 as in NumPy), summed so the draws cannot be optimised away;
 * ``exp``: ``exp(-z^2/2)`` over a fixed array alone (the math library's exp, in a reduction);
+* ``exp_engine``: the same exponentials with the engine's own branch-free exp
+  (:func:`pfbench.backends.fastexp.exp_scalar`) in a loop of its own, as the kernels run it
+  (vectorised);
 * ``memory_pass``: one read and one write of a float64 particle array of N_p elements
   (``x = 0.5 x + 1``), the cost of touching the particles once more -- in cache for small N_p,
   memory bandwidth for large N_p.
+
+:func:`floor_ns` with ``backend="numba"`` is the floor with the library primitives (numba's
+ziggurat normal and the math library's scalar exp), as the engine's targets are stated;
+``backend="engine"`` is the same work with the engine's vectorised exp, the floor the engine could
+reach with its own primitives.
 
 All results are ns per particle-step, medians of ``repeats`` timings, compilation excluded.
 """
@@ -24,6 +32,7 @@ import time
 import numpy as np
 
 from ..backends.cache import njit
+from ..backends.fastexp import exp_scalar
 
 
 @njit(nogil=True)
@@ -33,6 +42,29 @@ def _floor(rng, n, m):
         z = rng.standard_normal(n)
         for i in range(n):
             acc += np.exp(-0.5 * z[i] * z[i])
+    return acc
+
+
+@njit(nogil=True, error_model="numpy")
+def _floor_engine(rng, n, m, e):
+    acc = 0.0
+    for _ in range(m):
+        z = rng.standard_normal(n)
+        for i in range(n):
+            e[i] = exp_scalar(-0.5 * z[i] * z[i])
+        for i in range(n):
+            acc += e[i]
+    return acc
+
+
+@njit(nogil=True, error_model="numpy")
+def _exps_engine(z, m, e):
+    acc = 0.0
+    for _ in range(m):
+        for i in range(z.size):
+            e[i] = exp_scalar(-0.5 * z[i] * z[i])
+        for i in range(z.size):
+            acc += e[i]
     return acc
 
 
@@ -78,6 +110,10 @@ def floor_ns(n: int, m: int, repeats: int, backend: str) -> float:
     if backend == "numba":
         _floor(rng, 8, 2)  # compile
         return _median_ns(lambda: _floor(rng, n, m), n, m, repeats)
+    if backend == "engine":
+        e = np.empty(n)
+        _floor_engine(rng, 8, 2, e)
+        return _median_ns(lambda: _floor_engine(rng, n, m, e), n, m, repeats)
 
     def run():
         acc = 0.0
@@ -90,11 +126,14 @@ def floor_ns(n: int, m: int, repeats: int, backend: str) -> float:
 
 
 def breakdown_ns(n: int, m: int, repeats: int) -> dict:
-    """The numba floor's parts (ns per particle-step): ``normal``, ``exp``, ``memory_pass``."""
+    """The numba floor's parts (ns per particle-step): ``normal``, ``exp``, ``exp_engine``,
+    ``memory_pass``."""
     rng = np.random.default_rng(0)
     z = np.random.default_rng(1).standard_normal(n)
     x = np.ones(n)
-    _normals(rng, 8, 2), _exps(z[:8], 2), _memory_pass(x[:8].copy(), 2)  # compile
+    e = np.empty(n)
+    _normals(rng, 8, 2), _exps(z[:8], 2), _exps_engine(z[:8], 2, e), _memory_pass(x[:8].copy(), 2)  # compile
     return {"normal": _median_ns(lambda: _normals(rng, n, m), n, m, repeats),
             "exp": _median_ns(lambda: _exps(z, m), n, m, repeats),
+            "exp_engine": _median_ns(lambda: _exps_engine(z, m, e), n, m, repeats),
             "memory_pass": _median_ns(lambda: _memory_pass(x, m), n, m, repeats)}

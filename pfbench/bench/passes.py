@@ -6,8 +6,13 @@ Parts (ns per particle-step, single thread, median of repeats), in the kernel's 
 
 * ``normals``: the transition noise, drawn tile by tile as the kernel draws it;
 * ``model``: the model's vectorised transition + log-likelihood on the same tiles;
+* ``transition_tile`` / ``transition_flat``: the model's transition alone on the kernel's
+  (tile, n_x = 1) arrays and the same compiled function on flat (tile,) arrays. numba lowers an
+  array expression over an (N, 1) array as two nested loops whose inner one has one iteration,
+  and LLVM vectorises inner loops only, so on the 2-D tiles the transition's division runs one
+  element at a time; the ratio shows what that costs (Ob1's transition accepts both shapes);
 * ``pass_a``: the whole fused pass A (draw + propagate + log-likelihood + log-weight + max);
-* ``exp``: one ``exp`` per particle alone;
+* ``exp``: one ``exp`` per particle alone (the kernel's vectorised exp, in its own loop);
 * ``pass_b``: the whole fused pass B (exp + running sum + moments + sum of squared weights);
 * ``resample``: systematic resampling + gather into the second buffer, on the cdf of the run's
   own weights at every step (Ob1's weights are very uneven, which is what makes a merge slow);
@@ -50,6 +55,16 @@ def _harnesses(mod):
         return acc
 
     @numba.njit
+    def transition_only(p, x, noise, m):
+        acc = 0.0
+        n = x.shape[0]
+        for t in range(m):
+            for s in range(0, n, tile):
+                e = min(s + tile, n)
+                acc += transition(x[s:e], x[s:e], t, noise[s:e], p).ravel()[0]
+        return acc
+
+    @numba.njit
     def whole_a(p, rng, y, x, m, la, lam):
         n = x.shape[0]
         lw = np.full(n, -np.log(n))
@@ -58,12 +73,16 @@ def _harnesses(mod):
             acc += pass_a(p, rng, y[t], y[t], t, x, 0, n, 1, lw, True, -np.log(n), False, lam, False, lam, la)
         return acc
 
-    @numba.njit
+    exp = mod._exp
+
+    @numba.njit(error_model="numpy")
     def exps(a, m):
+        e = np.empty(a.shape[0])
         acc = 0.0
         for _ in range(m):
-            for i in range(a.shape[0]):
-                acc += np.exp(a[i])
+            for i in range(a.shape[0]):  # as pass B runs it: a vectorised loop of its own
+                e[i] = exp(a[i])
+            acc += e[0]
         return acc
 
     @numba.njit
@@ -79,12 +98,12 @@ def _harnesses(mod):
     def resample(cdfs, x, rng):
         n = x.shape[0]
         dst, lam = np.empty_like(x), np.empty(n)
-        ub, anc, pos = np.empty(1), np.empty(n, np.int64), np.empty(n)
+        ub, anc, pos, kk = np.empty(1), np.empty(n, np.int64), np.empty(n), np.empty(n, np.int64)
         for t in range(cdfs.shape[0]):
-            merge(cdfs[t], n, rng.random(), ub, False, 0, n, x, dst, lam, lam, False, anc, pos)
+            merge(cdfs[t], n, rng.random(), ub, False, 0, n, x, dst, lam, lam, False, anc, pos, kk)
         return dst[0, 0]
 
-    return normals, model, whole_a, exps, whole_b, resample
+    return normals, model, transition_only, whole_a, exps, whole_b, resample
 
 
 def _median_ns(fn, args, n: int, m: int, repeats: int) -> float:
@@ -107,7 +126,7 @@ def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5) -> dict:
     traj = model.simulate(m, seed=1)
     p = model.params()
     mod = numba_backend.kernel_module(model, "particle", "systematic")
-    normals, model_fn, whole_a, exps, whole_b, resample = _harnesses(mod)
+    normals, model_fn, transition_only, whole_a, exps, whole_b, resample = _harnesses(mod)
     run = run_filter(model, traj.y, None, method="bootstrap", n_particles=n, seed=0, n_threads=1,
                      store_particles=True)
     weights = run.extras["weights"][0]
@@ -119,6 +138,9 @@ def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5) -> dict:
     out = {"steps": m, "particles": n,
            "normals": _median_ns(normals, (rng, n, m), n, m, repeats),
            "model": _median_ns(model_fn, (p, traj.y, x, noise, m), n, m, repeats),
+           "transition_tile": _median_ns(transition_only, (p, x, noise, m), n, m, repeats),
+           "transition_flat": _median_ns(transition_only, (p, x[:, 0].copy(), noise[:, 0].copy(), m), n, m,
+                                         repeats),
            "pass_a": _median_ns(whole_a, (p, rng, traj.y, x.copy(), m, np.empty(n), np.zeros(n)), n, m, repeats),
            "exp": _median_ns(exps, (la, m), n, m, repeats),
            "pass_b": _median_ns(whole_b, (la, x, m), n, m, repeats),
@@ -135,4 +157,6 @@ def passes_text(d: dict) -> str:
             f"timed alone): pass A {d['pass_a']:.1f} (normal draws {d['normals']:.1f} + model transition and "
             f"likelihood {d['model']:.1f} + the rest), pass B {d['pass_b']:.1f} (exp alone {d['exp']:.1f}), "
             f"resampling + gather {d['resample']:.1f}; whole filter {d['filter']:.1f} (unaccounted "
-            f"{d['rest']:.1f})")
+            f"{d['rest']:.1f}); the model's transition alone: {d['transition_tile']:.1f} on the kernel's "
+            f"(tile, 1) arrays, {d['transition_flat']:.1f} on flat arrays (numba does not vectorise "
+            f"array expressions over a trailing axis of length 1)")

@@ -45,6 +45,7 @@ def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
         bounds = np.unique(np.r_[0, np.sort(rng.integers(1, n + 1, int(rng.integers(0, 3)))), n])
         for i0, i1 in zip(bounds[:-1], bounds[1:]):
             kernel._merge_gather(cdf, n, u, ub[i0:i1].copy(), strat, int(i0), int(i1), src, dst, lam_src,
-                                 lam_dst, True, np.empty(n, np.int64), np.empty(n))
+                                 lam_dst, True, np.empty(n, np.int64), np.empty(n),
+                                 np.empty(n, np.int64))
         np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
         np.testing.assert_array_equal(lam_dst, expect * 10.0)
