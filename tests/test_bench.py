@@ -34,7 +34,7 @@ def test_kernel_parts_are_timed_and_reported(res):
     """Each part of the particle kernel is timed (positive, finite) and the unaccounted rest is the
     whole filter minus the three passes. Catches a part left out of the sum or of the printed line."""
     d = res["kernel_parts"]
-    for k in ("normals", "model", "transition_tile", "transition_flat", "pass_a", "exp", "pass_b", "resample",
+    for k in ("normals", "model", "transition_c", "transition_f", "pass_a", "exp", "pass_b", "resample",
               "filter"):
         assert math.isfinite(d[k]) and d[k] > 0, k
     assert d["rest"] == pytest.approx(d["filter"] - d["pass_a"] - d["pass_b"] - d["resample"])

@@ -146,6 +146,7 @@ def kernel_module(model_or_cls, family: str = "particle", scheme=None):
             footer += (f"_{fn} = _model_function({cls.__module__!r}, {cls.__qualname__!r}, {fn!r})\n")
         footer += f"from pfbench.backends.numba_resampling import {resampler} as _resample\n"
         footer += f"_SCHEME = {-1 if scheme is None else int(Scheme.parse(scheme) if isinstance(scheme, str) else scheme)}\n"
+        footer += f"_F_TILES = {getattr(cls, 'n_x', 0) == 1 and getattr(cls, 'n_noise', 0) == 1}\n"
         text = body + footer
         if not disk_cacheable(cls):
             text = text.replace("_njit(nogil=True", "_njit(cache=False, nogil=True")

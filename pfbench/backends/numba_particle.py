@@ -59,6 +59,9 @@ import numba as _numba
 import numpy as _np
 from numba.extending import overload as _overload
 from numba.extending import register_jitable as _register_jitable
+from numba.extending import intrinsic as _intrinsic
+from numba.core import types as _types
+from numba.core.imputils import impl_ret_borrowed as _impl_ret_borrowed
 
 from pfbench.backends.cache import njit as _njit
 from pfbench.backends.fastexp import exp_scalar as _exp
@@ -72,6 +75,9 @@ _SIR = int(_Method.SIR)
 _TILE = 512
 #: resampling scheme code bound by kernel_module (-1: chosen at run time through ``_resample``)
 _SCHEME = -1
+#: bound by kernel_module: True when the model has one state and one noise component, whose tiles
+#: are handed to the model typed column-major (:func:`_column_major`)
+_F_TILES = False
 _prange = _numba.prange
 
 
@@ -101,6 +107,26 @@ def _normals_impl(rng, k, n_noise, like):
     if like.dtype == _numba.types.float32:
         return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float32)
     return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float64)
+
+
+@_intrinsic
+def _column_major(typingctx, a):
+    """The same (n, 1) C-contiguous array typed column-major ('F'); no copy.
+
+    An (n, 1) contiguous array is both row- and column-major, but numba lowers an array expression
+    over a C array as two nested loops with the trailing axis (length 1) innermost, and LLVM
+    vectorises inner loops only: the model's arithmetic then runs one particle at a time (Ob1's
+    transition: 2.2 ns per particle on (512, 1) C tiles, 0.6 ns on the same memory typed 'F', same
+    bits). Typed 'F', the rows are the inner loop. Only valid for a trailing axis of length 1.
+    """
+    if not isinstance(a, _types.Array) or a.ndim != 2 or a.layout != "C":
+        return None
+    ret = a.copy(layout="F")
+
+    def codegen(context, builder, signature, args):
+        return _impl_ret_borrowed(context, builder, signature.return_type, args[0])
+
+    return ret(a), codegen
 
 
 def _as64(a):  # pragma: no cover - compiled through the overload below
@@ -147,7 +173,10 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
                     noise[i, c] = 0.0
         else:
             noise = _as64(_normals(brng, k, n_noise, xs))
-        xn = _transition(_as64(xs[s:e]), ut, t, noise, p)
+        if _F_TILES:  # a compile-time constant: numba prunes the other branch
+            xn = _transition(_column_major(_as64(xs[s:e])), ut, t, _column_major(noise), p)
+        else:
+            xn = _transition(_as64(xs[s:e]), ut, t, noise, p)
         if not first:
             for i in range(k):
                 for c in range(n_x):

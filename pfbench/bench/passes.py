@@ -6,11 +6,11 @@ Parts (ns per particle-step, single thread, median of repeats), in the kernel's 
 
 * ``normals``: the transition noise, drawn tile by tile as the kernel draws it;
 * ``model``: the model's vectorised transition + log-likelihood on the same tiles;
-* ``transition_tile`` / ``transition_flat``: the model's transition alone on the kernel's
-  (tile, n_x = 1) arrays and the same compiled function on flat (tile,) arrays. numba lowers an
-  array expression over an (N, 1) array as two nested loops whose inner one has one iteration,
-  and LLVM vectorises inner loops only, so on the 2-D tiles the transition's division runs one
-  element at a time; the ratio shows what that costs (Ob1's transition accepts both shapes);
+* ``transition_c`` / ``transition_f``: the model's transition alone on (tile, 1) arrays typed
+  row-major ('C', as the tiles are stored) and typed column-major ('F', as the kernel hands them
+  to a model with one state and one noise component). numba lowers an array expression over a C
+  array as nested loops with the trailing axis (length 1) innermost, and LLVM vectorises inner
+  loops only, so on C tiles the transition's division runs one particle at a time;
 * ``pass_a``: the whole fused pass A (draw + propagate + log-likelihood + log-weight + max);
 * ``exp``: one ``exp`` per particle alone (the kernel's vectorised exp, in its own loop);
 * ``pass_b``: the whole fused pass B (exp + running sum + moments + sum of squared weights);
@@ -50,18 +50,34 @@ def _harnesses(mod):
         for t in range(m):
             for s in range(0, n, tile):
                 e = min(s + tile, n)
-                xn = transition(x[s:e], y[t], t, noise[s:e], p)
+                if f_tiles:  # as the kernel calls the model
+                    xn = transition(column_major(x[s:e]), y[t], t, column_major(noise[s:e]), p)
+                else:
+                    xn = transition(x[s:e], y[t], t, noise[s:e], p)
                 acc += log_likelihood(y[t], xn, y[t], t, p)[0]
         return acc
 
+    column_major = mod._column_major
+    f_tiles = mod._F_TILES
+
     @numba.njit
-    def transition_only(p, x, noise, m):
+    def transition_c(p, x, noise, m):
         acc = 0.0
         n = x.shape[0]
         for t in range(m):
             for s in range(0, n, tile):
                 e = min(s + tile, n)
-                acc += transition(x[s:e], x[s:e], t, noise[s:e], p).ravel()[0]
+                acc += transition(x[s:e], x[s], t, noise[s:e], p)[0, 0]
+        return acc
+
+    @numba.njit
+    def transition_f(p, x, noise, m):
+        acc = 0.0
+        n = x.shape[0]
+        for t in range(m):
+            for s in range(0, n, tile):
+                e = min(s + tile, n)
+                acc += transition(column_major(x[s:e]), x[s], t, column_major(noise[s:e]), p)[0, 0]
         return acc
 
     @numba.njit
@@ -103,7 +119,7 @@ def _harnesses(mod):
             merge(cdfs[t], n, rng.random(), ub, False, 0, n, x, dst, lam, lam, False, anc, pos, kk)
         return dst[0, 0]
 
-    return normals, model, transition_only, whole_a, exps, whole_b, resample
+    return normals, model, transition_c, transition_f, whole_a, exps, whole_b, resample
 
 
 def _median_ns(fn, args, n: int, m: int, repeats: int) -> float:
@@ -126,7 +142,7 @@ def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5) -> dict:
     traj = model.simulate(m, seed=1)
     p = model.params()
     mod = numba_backend.kernel_module(model, "particle", "systematic")
-    normals, model_fn, transition_only, whole_a, exps, whole_b, resample = _harnesses(mod)
+    normals, model_fn, transition_c, transition_f, whole_a, exps, whole_b, resample = _harnesses(mod)
     run = run_filter(model, traj.y, None, method="bootstrap", n_particles=n, seed=0, n_threads=1,
                      store_particles=True)
     weights = run.extras["weights"][0]
@@ -138,9 +154,8 @@ def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5) -> dict:
     out = {"steps": m, "particles": n,
            "normals": _median_ns(normals, (rng, n, m), n, m, repeats),
            "model": _median_ns(model_fn, (p, traj.y, x, noise, m), n, m, repeats),
-           "transition_tile": _median_ns(transition_only, (p, x, noise, m), n, m, repeats),
-           "transition_flat": _median_ns(transition_only, (p, x[:, 0].copy(), noise[:, 0].copy(), m), n, m,
-                                         repeats),
+           "transition_c": _median_ns(transition_c, (p, x, noise, m), n, m, repeats),
+           "transition_f": _median_ns(transition_f, (p, x, noise, m), n, m, repeats),
            "pass_a": _median_ns(whole_a, (p, rng, traj.y, x.copy(), m, np.empty(n), np.zeros(n)), n, m, repeats),
            "exp": _median_ns(exps, (la, m), n, m, repeats),
            "pass_b": _median_ns(whole_b, (la, x, m), n, m, repeats),
@@ -157,6 +172,6 @@ def passes_text(d: dict) -> str:
             f"timed alone): pass A {d['pass_a']:.1f} (normal draws {d['normals']:.1f} + model transition and "
             f"likelihood {d['model']:.1f} + the rest), pass B {d['pass_b']:.1f} (exp alone {d['exp']:.1f}), "
             f"resampling + gather {d['resample']:.1f}; whole filter {d['filter']:.1f} (unaccounted "
-            f"{d['rest']:.1f}); the model's transition alone: {d['transition_tile']:.1f} on the kernel's "
-            f"(tile, 1) arrays, {d['transition_flat']:.1f} on flat arrays (numba does not vectorise "
-            f"array expressions over a trailing axis of length 1)")
+            f"{d['rest']:.1f}); the model's transition alone on (tile, 1) arrays: {d['transition_c']:.1f} "
+            f"typed row-major, {d['transition_f']:.1f} typed column-major as the kernel passes them (numba "
+            f"vectorises no array expression over a trailing axis of length 1)")
