@@ -49,3 +49,18 @@ def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
                                  np.empty(n, np.int64))
         np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
         np.testing.assert_array_equal(lam_dst, expect * 10.0)
+
+
+def test_column_major_tiles_follow_the_instance_dimensions():
+    """Tiles are typed column-major only for an instance with one state and one noise component.
+    ``linear_gaussian`` takes its dimensions from its matrices while its class keeps the defaults
+    n_x = n_noise = 1: deciding on the class would hand a (tile, 2) C array to the model typed 'F'
+    (columns read as rows, silently wrong estimates). Catches a layout decided from the class, and
+    a module cache that serves the 1-state module to a 2-state instance of the same class."""
+    lg1 = pfbench.models.get("linear_gaussian")
+    lg2 = pfbench.models.get("linear_gaussian", A=np.eye(2) * 0.9, C=[[1.0, 0.5]], Q=np.eye(2), R=[[0.5]])
+    assert type(lg1) is type(lg2) and type(lg2).n_x == 1 and lg2.n_x == 2
+    m1 = numba_backend.kernel_module(lg1, "particle", "systematic")
+    m2 = numba_backend.kernel_module(lg2, "particle", "systematic")
+    assert m1._F_TILES is True and m2._F_TILES is False
+    assert numba_backend.kernel_module(type(lg1), "particle", "systematic")._F_TILES is False
