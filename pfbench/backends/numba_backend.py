@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import write_text
-from . import cache
+from . import cache, pcg64
 
 _HERE = Path(__file__).resolve().parent
 #: family -> (kernel module file, the model functions it calls as ``_<name>``)
@@ -249,6 +249,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     brngs = [rng] if brngs is None else list(brngs)
     if len(brngs) != bounds.shape[0] - 1:
         raise ValueError(f"{len(brngs)} block streams for {x.shape[1]} particles in {bounds.shape[0] - 1} blocks")
+    pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = kernel_module(model, "particle", scheme)
     args = (p, rng, brngs, y, u, x, int(model.n_noise), int(method),
             int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w)

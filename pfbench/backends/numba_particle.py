@@ -63,6 +63,7 @@ from numba.extending import intrinsic as _intrinsic
 from numba.core import types as _types
 from numba.core.imputils import impl_ret_borrowed as _impl_ret_borrowed
 
+from pfbench.backends import pcg64 as _pcg64
 from pfbench.backends.cache import njit as _njit
 from pfbench.backends.fastexp import exp_scalar as _exp
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
@@ -103,9 +104,18 @@ def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the 
 
 @_overload(_normals)
 def _normals_impl(rng, k, n_noise, like):
-    """(k, n_noise) standard normals in the particle dtype (float32 draws the float32 ziggurat)."""
+    """(k, n_noise) standard normals in the particle dtype (float32 draws the float32 ziggurat).
+
+    float64: NumPy's PCG64 + ziggurat inlined (:func:`pfbench.backends.pcg64.normals_into`, the
+    numbers ``rng.standard_normal`` gives, 2.5x faster), where NumPy's state layout allows."""
     if like.dtype == _numba.types.float32:
         return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float32)
+    if _pcg64.layout_ok():
+        def inline(rng, k, n_noise, like):
+            out = _np.empty((k, n_noise))
+            _pcg64.normals_into(rng, out)
+            return out
+        return inline
     return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float64)
 
 
