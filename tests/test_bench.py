@@ -26,7 +26,7 @@ def test_rows_cover_backends_and_dtypes(res):
         assert math.isfinite(r["ns_per_particle_step"]) and r["ns_per_particle_step"] > 0
         assert r["threads"] == (1 if r["backend"] == "numba" else None)  # targets are per 1 thread
     for f in res["floors"]:
-        assert set(f["breakdown_ns"]) == {"normal", "exp", "exp_engine", "memory_pass"}
+        assert set(f["breakdown_ns"]) == {"normal", "normal_engine", "exp", "exp_engine", "memory_pass"}
         assert all(v > 0 for v in f["breakdown_ns"].values())
 
 

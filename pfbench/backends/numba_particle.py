@@ -15,9 +15,9 @@ A. draw noise + propagate + log-likelihood + a = lw + ll + running max, in tiles
    model is still written once; tile-by-tile draws are the numbers one big draw gives); the
    log-weights of the common (bootstrap) step are a branch-free loop and the max keeps four
    running maxima (:func:`_max`);
-B. w = exp(a - max) (a vectorised loop of its own) + running sum (the cdf) +
+B. w = exp(a - max) (a vectorised loop of its own), the running sum (the cdf), then
    weighted sums for the mean, the shifted second moment (shift: the filter's particle 0, so the
-   one-pass variance does not cancel) and sum w^2 (N_eff);
+   one-pass variance does not cancel) and sum w^2 (N_eff), with partial sums in registers;
 C. resampling: systematic and stratified as a merge that writes the resampled particles straight
    into the second particle buffer (the buffers swap; no index array, no copy back); multinomial and
    residual draw indices (``_resample``) and gather.
@@ -106,16 +106,25 @@ def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the 
 def _normals_impl(rng, k, n_noise, like):
     """(k, n_noise) standard normals in the particle dtype (float32 draws the float32 ziggurat).
 
-    float64: NumPy's PCG64 + ziggurat inlined (:func:`pfbench.backends.pcg64.normals_into`, the
-    numbers ``rng.standard_normal`` gives, 2.5x faster), where NumPy's state layout allows."""
-    if like.dtype == _numba.types.float32:
-        return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float32)
+    NumPy's PCG64 + ziggurat inlined (:func:`pfbench.backends.pcg64.normals_into`,
+    :func:`~pfbench.backends.pcg64.normals_into_f32`: the numbers ``rng.standard_normal`` gives,
+    about 2.5x faster), where NumPy's state layout allows."""
+    f32 = like.dtype == _numba.types.float32
     if _pcg64.layout_ok():
+        if f32:
+            def inline32(rng, k, n_noise, like):
+                out = _np.empty((k, n_noise), _np.float32)
+                _pcg64.normals_into_f32(rng, out)
+                return out
+            return inline32
+
         def inline(rng, k, n_noise, like):
             out = _np.empty((k, n_noise))
             _pcg64.normals_into(rng, out)
             return out
         return inline
+    if f32:
+        return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float32)
     return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float64)
 
 
@@ -251,33 +260,71 @@ def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
     """Pass B on [i0, i1): w = exp(a - m), block running sum (cdf), and, when ``mom``, the block's
     sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
 
-    The exponentials are a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
-    LLVM vectorises; the running sums cannot be), so the weights make one extra trip through the
-    cache. (Tiling the two loops, so that trip stays in L1 at large N_p, measured 0.7 ns per
-    particle-step slower at N_p = 1000: 4.2 vs 3.5 ns for the pass.)
-    ``error_model="numpy"``: numba's zero-division check would stop the vectoriser.
+    Three kinds of loop over the block, each as fast as its dependences allow:
+
+    * the exponentials, a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
+      LLVM vectorises; ``error_model="numpy"``: numba's zero-division check would stop the
+      vectoriser);
+    * the running sum, the one strictly sequential chain (the cdf feeds the resampling, so it is
+      the NumPy reference's ``cumsum`` order, one add after the other);
+    * the moments (which feed nothing back), with four partial sums per quantity in registers
+      (:func:`_sums4`), one state component at a time: a sum accumulated in the ``bsx`` array
+      itself waits on a store and a reload every particle (measured on Ob1: the pass took 8.6 ns
+      per particle-step that way, exp 2.4 ns of it).
     """
     n_x = xs.shape[1]
-    acc = 0.0
-    s2 = 0.0
-    for c in range(n_x):
-        bsx[b, c] = 0.0
-        bsxx[b, c] = 0.0
     for i in range(i0, i1):
         wu[i] = _exp(la[i] - m)
+    acc = 0.0
     for i in range(i0, i1):
-        w = wu[i]
-        acc += w
+        acc += wu[i]
         cdf[i] = acc
-        if mom:
-            s2 += w * w
-            for c in range(n_x):
-                xc = _np.float64(xs[i, c])
-                bsx[b, c] += w * xc
-                d = xc - _np.float64(xs[0, c])
-                bsxx[b, c] += w * d * d
     bsum[b] = acc
-    bs2[b] = s2
+    if mom:
+        bs2[b] = _sums4(wu, wu, i0, i1, 0.0, False)
+        for c in range(n_x):
+            x0 = _np.float64(xs[0, c])
+            bsx[b, c] = _sums4(wu, xs[:, c], i0, i1, 0.0, False)
+            bsxx[b, c] = _sums4(wu, xs[:, c], i0, i1, x0, True)
+    else:
+        bs2[b] = 0.0
+        for c in range(n_x):
+            bsx[b, c] = 0.0
+            bsxx[b, c] = 0.0
+
+
+@_register_jitable
+def _sums4(w, v, i0, i1, shift, square):
+    """sum over [i0, i1) of w_i d_i (``square``: w_i d_i^2), d_i = v_i - shift, with four partial
+    sums so the adds do not wait on each other (the order differs from a plain loop in the last
+    bits: estimates and N_eff only, which feed nothing back but SIR's threshold test)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    i = i0
+    while i + 4 <= i1:
+        d0 = _np.float64(v[i]) - shift
+        d1 = _np.float64(v[i + 1]) - shift
+        d2 = _np.float64(v[i + 2]) - shift
+        d3 = _np.float64(v[i + 3]) - shift
+        if square:
+            d0 *= d0
+            d1 *= d1
+            d2 *= d2
+            d3 *= d3
+        s0 += w[i] * d0
+        s1 += w[i + 1] * d1
+        s2 += w[i + 2] * d2
+        s3 += w[i + 3] * d3
+        i += 4
+    while i < i1:
+        d0 = _np.float64(v[i]) - shift
+        if square:
+            d0 *= d0
+        s0 += w[i] * d0
+        i += 1
+    return (s0 + s1) + (s2 + s3)
 
 
 @_njit(nogil=True)

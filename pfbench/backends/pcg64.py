@@ -14,12 +14,13 @@ the state in registers:
   rotr64(high ^ low, state >> 122), as ``pcg_setseq_128_xsl_rr_64_random_r`` in NumPy), runs
   NumPy's float64 ziggurat (``random_standard_normal`` with numba's copy of NumPy's tables) and
   stores the state back, so any later draw, by numba or by NumPy, continues the same stream;
+* :func:`normals_into_f32` does the same for ``standard_normal(dtype=np.float32)`` (NumPy's float32
+  ziggurat on 32-bit words, two per PCG64 step, the spare half buffered in the state struct);
 * :func:`layout_ok` checks once per process, from Python, that NumPy's PCG64 state struct is laid
   out as this module reads it (a pointer to two little-endian 128-bit integers, the build with a
   native 128-bit type); if not, the kernels keep numba's own draws (the same numbers, slower).
 
-Only PCG64 generators may be passed (:func:`check_generators`); only float64 draws are inlined
-(float32 draws use NumPy's 32-bit buffered path, which numba's own code keeps).
+Only PCG64 generators may be passed (:func:`check_generators`).
 """
 from __future__ import annotations
 
@@ -32,8 +33,9 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, register_jitable
 from pfbench.backends.fastexp import _bits, _from_bits
-from numba.np.random._constants import (fi_double, ki_double, wi_double, ziggurat_nor_inv_r,
-                                        ziggurat_nor_r)
+from numba.np.random._constants import (fi_double, fi_float, ki_double, ki_float, wi_double, wi_float,
+                                        ziggurat_nor_inv_r, ziggurat_nor_inv_r_f, ziggurat_nor_r,
+                                        ziggurat_nor_r_f)
 
 #: PCG64's 128-bit multiplier (PCG_DEFAULT_MULTIPLIER_128)
 MULTIPLIER = 0x2360ED051FC65DA44385DF649FCCF645
@@ -86,6 +88,49 @@ def _store(typingctx, gen, lo, hi):
         i128 = ir.IntType(128)
         s = builder.or_(builder.zext(args[1], i128), builder.shl(builder.zext(args[2], i128), ir.Constant(i128, 64)))
         builder.store(s, p)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _buffer_pointer(builder, context, gen_type, gen):
+    """An ``i32 *`` at a Generator's ``pcg64_state``: word 2 is ``has_uint32``, word 3 ``uinteger``."""
+    gproxy = cgutils.create_struct_proxy(gen_type)(context, builder, value=gen)
+    bt = types.NumPyRandomBitGeneratorType("bit_generator")
+    proxy = cgutils.create_struct_proxy(bt)(context, builder, value=gproxy.bit_generator)
+    return builder.inttoptr(proxy.state, ir.IntType(32).as_pointer())
+
+
+@intrinsic
+def _load32(typingctx, gen):
+    """(has_uint32, uinteger) of a Generator's PCG64 state: the buffered upper half of the last
+    64-bit word that a 32-bit draw split."""
+    if not isinstance(gen, types.NumPyRandomGeneratorType):
+        return None
+    sig = types.UniTuple(types.uint64, 2)(gen)
+
+    def codegen(context, builder, signature, args):
+        p = _buffer_pointer(builder, context, signature.args[0], args[0])
+        i64 = ir.IntType(64)
+        has = builder.zext(builder.load(builder.gep(p, [ir.Constant(ir.IntType(32), 2)])), i64)
+        buf = builder.zext(builder.load(builder.gep(p, [ir.Constant(ir.IntType(32), 3)])), i64)
+        return context.make_tuple(builder, signature.return_type, [has, buf])
+
+    return sig, codegen
+
+
+@intrinsic
+def _store32(typingctx, gen, has, buf):
+    """Write (has_uint32, uinteger) back."""
+    if not isinstance(gen, types.NumPyRandomGeneratorType):
+        return None
+    sig = types.void(gen, types.uint64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        p = _buffer_pointer(builder, context, signature.args[0], args[0])
+        i32 = ir.IntType(32)
+        builder.store(builder.trunc(args[1], i32), builder.gep(p, [ir.Constant(i32, 2)]))
+        builder.store(builder.trunc(args[2], i32), builder.gep(p, [ir.Constant(i32, 3)]))
         return context.get_dummy_value()
 
     return sig, codegen
@@ -157,6 +202,61 @@ def normals_into(gen, out):
     _store(gen, lo, hi)
 
 
+@register_jitable
+def _next32(lo, hi, clo, chi, has, buf):
+    """NumPy's ``pcg64_next32``: the buffered upper half if there is one, else the lower half of a
+    new 64-bit word (whose upper half is buffered). Returns (lo, hi, has, buf, 32-bit word)."""
+    if has:
+        return lo, hi, np.uint64(0), buf, buf
+    lo, hi, r = _step(lo, hi, clo, chi)
+    return lo, hi, np.uint64(1), r >> np.uint64(32), r & np.uint64(0xFFFFFFFF)
+
+
+@register_jitable
+def _float(r):
+    """NumPy's next_float: the top 24 of 32 bits, in [0, 1)."""
+    return np.float32(np.float32(np.int64(r >> np.uint64(8))) * np.float32(1.0 / 16777216.0))
+
+
+@register_jitable
+def normals_into_f32(gen, out):
+    """Fill the float32 array ``out`` (C order) with ``gen.standard_normal(out.shape,
+    dtype=np.float32)``: NumPy's float32 ziggurat on 32-bit words (two per PCG64 step, the upper
+    half buffered in the generator's state as NumPy does), the branches of numba's copy of it."""
+    lo, hi, clo, chi = _load(gen)
+    has, buf = _load32(gen)
+    flat = out.reshape(out.size)
+    for i in range(flat.size):
+        while True:
+            lo, hi, has, buf, r = _next32(lo, hi, clo, chi, has, buf)
+            idx = np.int64(r & np.uint64(0xFF))
+            rabs = (r >> np.uint64(9)) & np.uint64(0x0007FFFFF)
+            sign = np.float32(1 - 2 * np.int64((r >> np.uint64(8)) & np.uint64(1)))  # branch-free
+            x = np.float32(np.float32(np.float32(np.int64(rabs)) * wi_float[idx]) * sign)
+            if rabs < ki_float[idx]:
+                break
+            if idx == 0:
+                while True:
+                    lo, hi, has, buf, r1 = _next32(lo, hi, clo, chi, has, buf)
+                    xx = np.float32(-ziggurat_nor_inv_r_f * np.log1p(np.float32(-_float(r1))))
+                    lo, hi, has, buf, r2 = _next32(lo, hi, clo, chi, has, buf)
+                    yy = np.float32(-np.log1p(np.float32(-_float(r2))))
+                    if np.float32(yy + yy) > np.float32(xx * xx):
+                        break
+                if (rabs >> np.uint64(8)) & np.uint64(1):
+                    x = -np.float32(ziggurat_nor_r_f + xx)
+                else:
+                    x = np.float32(ziggurat_nor_r_f + xx)
+                break
+            lo, hi, has, buf, r1 = _next32(lo, hi, clo, chi, has, buf)
+            if ((fi_float[idx - 1] - fi_float[idx]) * _float(r1) + fi_float[idx]
+                    < np.float32(np.exp(-np.float32(0.5) * x * x))):
+                break
+        flat[i] = x
+    _store(gen, lo, hi)
+    _store32(gen, has, buf)
+
+
 def check_generators(gens) -> None:
     """Raise UnsupportedError unless every generator runs on PCG64 (the bit generator whose state
     :func:`normals_into` reads; another one's struct would be misread)."""
@@ -176,6 +276,11 @@ def layout_ok() -> bool:
         inner = ctypes.c_void_p.from_address(bg.ctypes.state_address).value
         words = (ctypes.c_uint64 * 4).from_address(inner)
         st = bg.state["state"]
-        return (words[0] | (words[1] << 64)) == st["state"] and (words[2] | (words[3] << 64)) == st["inc"]
+        ok = (words[0] | (words[1] << 64)) == st["state"] and (words[2] | (words[3] << 64)) == st["inc"]
+        state = bg.state
+        state.update(has_uint32=1, uinteger=0xDEADBEEF)
+        bg.state = state
+        buf = (ctypes.c_uint32 * 4).from_address(bg.ctypes.state_address)
+        return ok and buf[2] == 1 and buf[3] == 0xDEADBEEF
     except Exception:  # noqa: BLE001 - any surprise means: do not read the struct
         return False

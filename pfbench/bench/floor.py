@@ -9,6 +9,8 @@ ns per particle-step reads as a multiple of what the machine needs at the least.
 
 * ``normal``: the standard-normal draws alone (numba's ``Generator.standard_normal``, a ziggurat
   on PCG64 as in NumPy), summed so the draws cannot be optimised away;
+* ``normal_engine``: the same draws (the same numbers) from the engine's inlined PCG64 + ziggurat
+  (:func:`pfbench.backends.pcg64.normals_into`), as the kernels draw them;
 * ``exp``: ``exp(-z^2/2)`` over a fixed array alone (the math library's exp, in a reduction);
 * ``exp_engine``: the same exponentials with the engine's own branch-free exp
   (:func:`pfbench.backends.fastexp.exp_scalar`) in a loop of its own, as the kernels run it
@@ -19,8 +21,8 @@ ns per particle-step reads as a multiple of what the machine needs at the least.
 
 :func:`floor_ns` with ``backend="numba"`` is the floor with the library primitives (numba's
 ziggurat normal and the math library's scalar exp), as the engine's targets are stated;
-``backend="engine"`` is the same work with the engine's vectorised exp, the floor the engine could
-reach with its own primitives.
+``backend="engine"`` is the same work with the engine's own primitives (inlined normals and the
+vectorised exp), the floor the engine could reach with them.
 
 All results are ns per particle-step, medians of ``repeats`` timings, compilation excluded.
 """
@@ -33,6 +35,7 @@ import numpy as np
 
 from ..backends.cache import njit
 from ..backends.fastexp import exp_scalar
+from ..backends.pcg64 import normals_into
 
 
 @njit(nogil=True)
@@ -48,8 +51,9 @@ def _floor(rng, n, m):
 @njit(nogil=True, error_model="numpy")
 def _floor_engine(rng, n, m, e):
     acc = 0.0
+    z = np.empty(n)
     for _ in range(m):
-        z = rng.standard_normal(n)
+        normals_into(rng, z)
         for i in range(n):
             e[i] = exp_scalar(-0.5 * z[i] * z[i])
         for i in range(n):
@@ -73,6 +77,17 @@ def _normals(rng, n, m):
     acc = 0.0
     for _ in range(m):
         z = rng.standard_normal(n)
+        for i in range(n):
+            acc += z[i]
+    return acc
+
+
+@njit(nogil=True)
+def _normals_engine(rng, n, m):
+    acc = 0.0
+    z = np.empty(n)
+    for _ in range(m):
+        normals_into(rng, z)
         for i in range(n):
             acc += z[i]
     return acc
@@ -126,14 +141,15 @@ def floor_ns(n: int, m: int, repeats: int, backend: str) -> float:
 
 
 def breakdown_ns(n: int, m: int, repeats: int) -> dict:
-    """The numba floor's parts (ns per particle-step): ``normal``, ``exp``, ``exp_engine``,
-    ``memory_pass``."""
+    """The numba floor's parts (ns per particle-step): ``normal``, ``normal_engine``, ``exp``,
+    ``exp_engine``, ``memory_pass``."""
     rng = np.random.default_rng(0)
     z = np.random.default_rng(1).standard_normal(n)
     x = np.ones(n)
     e = np.empty(n)
-    _normals(rng, 8, 2), _exps(z[:8], 2), _exps_engine(z[:8], 2, e), _memory_pass(x[:8].copy(), 2)  # compile
+    _normals(rng, 8, 2), _normals_engine(rng, 8, 2), _exps(z[:8], 2), _exps_engine(z[:8], 2, e), _memory_pass(x[:8].copy(), 2)  # compile
     return {"normal": _median_ns(lambda: _normals(rng, n, m), n, m, repeats),
+            "normal_engine": _median_ns(lambda: _normals_engine(rng, n, m), n, m, repeats),
             "exp": _median_ns(lambda: _exps(z, m), n, m, repeats),
             "exp_engine": _median_ns(lambda: _exps_engine(z, m, e), n, m, repeats),
             "memory_pass": _median_ns(lambda: _memory_pass(x, m), n, m, repeats)}

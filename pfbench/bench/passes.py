@@ -34,13 +34,15 @@ def _harnesses(mod):
     pass_a, pass_b, merge = mod._pass_a, mod._pass_b, mod._merge_gather
     transition, log_likelihood = mod._transition, mod._log_likelihood
     tile = mod._TILE
+    draw = mod._normals
 
     @numba.njit
     def normals(rng, n, m):
+        like = np.empty((1, 1))
         acc = 0.0
         for _ in range(m):
             for s in range(0, n, tile):
-                acc += rng.standard_normal((min(s + tile, n) - s, 1))[0, 0]
+                acc += draw(rng, min(s + tile, n) - s, 1, like)[0, 0]
         return acc
 
     @numba.njit
