@@ -44,96 +44,83 @@ _MUL_HI = MULTIPLIER >> 64
 _M64 = 0xFFFFFFFFFFFFFFFF
 
 
-def _state_pointer(builder, context, bitgen_type, bitgen):
-    """The ``pcg64_random_t *`` of a bit generator: the first member of its ``pcg64_state``."""
-    proxy = cgutils.create_struct_proxy(bitgen_type)(context, builder, value=bitgen)
+def _struct_address(builder, context, gen_type, gen):
+    """The address (uintp) of a Generator's ``pcg64_state`` struct, as numba holds it."""
+    gproxy = cgutils.create_struct_proxy(gen_type)(context, builder, value=gen)
+    bt = types.NumPyRandomBitGeneratorType("bit_generator")
+    return cgutils.create_struct_proxy(bt)(context, builder, value=gproxy.bit_generator).state
+
+
+def _state_pointer(builder, context, gen_type, gen):
+    """The ``pcg64_random_t *`` (two 128-bit words: state, increment): the struct's first member."""
     i128p = ir.IntType(128).as_pointer()
-    outer = builder.inttoptr(proxy.state, i128p.as_pointer())
-    return builder.load(outer)
-
-
-@intrinsic
-def _load(typingctx, gen):
-    """(state low, state high, increment low, increment high) of a Generator's PCG64 state."""
-    if not isinstance(gen, types.NumPyRandomGeneratorType):
-        return None
-    u64 = types.uint64
-    sig = types.UniTuple(u64, 4)(gen)
-
-    def codegen(context, builder, signature, args):
-        gproxy = cgutils.create_struct_proxy(signature.args[0])(context, builder, value=args[0])
-        bt = types.NumPyRandomBitGeneratorType("bit_generator")
-        p = _state_pointer(builder, context, bt, gproxy.bit_generator)
-        i64 = ir.IntType(64)
-        s = builder.load(p)
-        c = builder.load(builder.gep(p, [ir.Constant(ir.IntType(32), 1)]))
-        parts = [builder.trunc(s, i64), builder.trunc(builder.lshr(s, ir.Constant(ir.IntType(128), 64)), i64),
-                 builder.trunc(c, i64), builder.trunc(builder.lshr(c, ir.Constant(ir.IntType(128), 64)), i64)]
-        return context.make_tuple(builder, signature.return_type, parts)
-
-    return sig, codegen
-
-
-@intrinsic
-def _store(typingctx, gen, lo, hi):
-    """Write the 128-bit state (lo, hi) back into a Generator's PCG64 state."""
-    if not isinstance(gen, types.NumPyRandomGeneratorType):
-        return None
-    sig = types.void(gen, types.uint64, types.uint64)
-
-    def codegen(context, builder, signature, args):
-        gproxy = cgutils.create_struct_proxy(signature.args[0])(context, builder, value=args[0])
-        bt = types.NumPyRandomBitGeneratorType("bit_generator")
-        p = _state_pointer(builder, context, bt, gproxy.bit_generator)
-        i128 = ir.IntType(128)
-        s = builder.or_(builder.zext(args[1], i128), builder.shl(builder.zext(args[2], i128), ir.Constant(i128, 64)))
-        builder.store(s, p)
-        return context.get_dummy_value()
-
-    return sig, codegen
+    return builder.load(builder.inttoptr(_struct_address(builder, context, gen_type, gen), i128p.as_pointer()))
 
 
 def _buffer_pointer(builder, context, gen_type, gen):
-    """An ``i32 *`` at a Generator's ``pcg64_state``: word 2 is ``has_uint32``, word 3 ``uinteger``."""
-    gproxy = cgutils.create_struct_proxy(gen_type)(context, builder, value=gen)
-    bt = types.NumPyRandomBitGeneratorType("bit_generator")
-    proxy = cgutils.create_struct_proxy(bt)(context, builder, value=gproxy.bit_generator)
-    return builder.inttoptr(proxy.state, ir.IntType(32).as_pointer())
+    """An ``i32 *`` at the ``pcg64_state`` struct: word 2 is ``has_uint32``, word 3 ``uinteger``."""
+    return builder.inttoptr(_struct_address(builder, context, gen_type, gen), ir.IntType(32).as_pointer())
 
 
-@intrinsic
-def _load32(typingctx, gen):
-    """(has_uint32, uinteger) of a Generator's PCG64 state: the buffered upper half of the last
-    64-bit word that a 32-bit draw split."""
-    if not isinstance(gen, types.NumPyRandomGeneratorType):
-        return None
-    sig = types.UniTuple(types.uint64, 2)(gen)
+def _generator_intrinsic(doc, sig_of, body):
+    """An intrinsic taking a Generator first: ``sig_of(gen, *rest)`` types it, ``body(context,
+    builder, signature, args)`` lowers it (one place for the type check)."""
+    def check(gen, *rest):
+        return (sig_of(gen, *rest), body) if isinstance(gen, types.NumPyRandomGeneratorType) else None
 
-    def codegen(context, builder, signature, args):
-        p = _buffer_pointer(builder, context, signature.args[0], args[0])
-        i64 = ir.IntType(64)
-        has = builder.zext(builder.load(builder.gep(p, [ir.Constant(ir.IntType(32), 2)])), i64)
-        buf = builder.zext(builder.load(builder.gep(p, [ir.Constant(ir.IntType(32), 3)])), i64)
-        return context.make_tuple(builder, signature.return_type, [has, buf])
+    # numba reads the typer's arity from its signature: no *args
+    if sig_of.__code__.co_argcount == 1:
+        def typer(typingctx, gen):
+            return check(gen)
+    else:
+        def typer(typingctx, gen, a, b):
+            return check(gen, a, b)
 
-    return sig, codegen
+    typer.__doc__ = doc
+    return intrinsic(typer)
 
 
-@intrinsic
-def _store32(typingctx, gen, has, buf):
-    """Write (has_uint32, uinteger) back."""
-    if not isinstance(gen, types.NumPyRandomGeneratorType):
-        return None
-    sig = types.void(gen, types.uint64, types.uint64)
+def _load_body(context, builder, signature, args):
+    p = _state_pointer(builder, context, signature.args[0], args[0])
+    i64, i128 = ir.IntType(64), ir.IntType(128)
+    s = builder.load(p)
+    c = builder.load(builder.gep(p, [ir.Constant(ir.IntType(32), 1)]))
+    parts = [builder.trunc(v, i64) for w in (s, c) for v in (w, builder.lshr(w, ir.Constant(i128, 64)))]
+    return context.make_tuple(builder, signature.return_type, parts)
 
-    def codegen(context, builder, signature, args):
-        p = _buffer_pointer(builder, context, signature.args[0], args[0])
-        i32 = ir.IntType(32)
-        builder.store(builder.trunc(args[1], i32), builder.gep(p, [ir.Constant(i32, 2)]))
-        builder.store(builder.trunc(args[2], i32), builder.gep(p, [ir.Constant(i32, 3)]))
-        return context.get_dummy_value()
 
-    return sig, codegen
+def _store_body(context, builder, signature, args):
+    p = _state_pointer(builder, context, signature.args[0], args[0])
+    i128 = ir.IntType(128)
+    builder.store(builder.or_(builder.zext(args[1], i128), builder.shl(builder.zext(args[2], i128),
+                                                                        ir.Constant(i128, 64))), p)
+    return context.get_dummy_value()
+
+
+def _load32_body(context, builder, signature, args):
+    p = _buffer_pointer(builder, context, signature.args[0], args[0])
+    i64, i32 = ir.IntType(64), ir.IntType(32)
+    words = [builder.zext(builder.load(builder.gep(p, [ir.Constant(i32, k)])), i64) for k in (2, 3)]
+    return context.make_tuple(builder, signature.return_type, words)
+
+
+def _store32_body(context, builder, signature, args):
+    p = _buffer_pointer(builder, context, signature.args[0], args[0])
+    i32 = ir.IntType(32)
+    for k, v in ((2, args[1]), (3, args[2])):
+        builder.store(builder.trunc(v, i32), builder.gep(p, [ir.Constant(i32, k)]))
+    return context.get_dummy_value()
+
+
+_U64 = types.uint64
+_load = _generator_intrinsic("(state low, state high, increment low, increment high) of a Generator's PCG64 "
+                             "state.", lambda g: types.UniTuple(_U64, 4)(g), _load_body)
+_store = _generator_intrinsic("Write the 128-bit state (lo, hi) back into a Generator's PCG64 state.",
+                              lambda g, lo, hi: types.void(g, _U64, _U64), _store_body)
+_load32 = _generator_intrinsic("(has_uint32, uinteger): the buffered upper half of the last 64-bit word "
+                               "that a 32-bit draw split.", lambda g: types.UniTuple(_U64, 2)(g), _load32_body)
+_store32 = _generator_intrinsic("Write (has_uint32, uinteger) back.",
+                                lambda g, has, buf: types.void(g, _U64, _U64), _store32_body)
 
 
 @intrinsic

@@ -25,16 +25,21 @@ from __future__ import annotations
 import statistics
 import time
 
+import numba.extending
 import numpy as np
 
 
-def _harnesses(mod):
-    import numba
+@numba.extending.register_jitable
+def _as_is(a):
+    return a
 
+
+def _harnesses(mod):
     pass_a, pass_b, merge = mod._pass_a, mod._pass_b, mod._merge_gather
     transition, log_likelihood = mod._transition, mod._log_likelihood
     tile = mod._TILE
     draw = mod._normals
+    tiles = mod._column_major if mod._F_TILES else _as_is
 
     @numba.njit
     def normals(rng, n, m):
@@ -52,35 +57,23 @@ def _harnesses(mod):
         for t in range(m):
             for s in range(0, n, tile):
                 e = min(s + tile, n)
-                if f_tiles:  # as the kernel calls the model
-                    xn = transition(column_major(x[s:e]), y[t], t, column_major(noise[s:e]), p)
-                else:
-                    xn = transition(x[s:e], y[t], t, noise[s:e], p)
+                xn = transition(tiles(x[s:e]), y[t], t, tiles(noise[s:e]), p)  # as the kernel does
                 acc += log_likelihood(y[t], xn, y[t], t, p)[0]
         return acc
 
-    column_major = mod._column_major
-    f_tiles = mod._F_TILES
+    def transition_on(layout):
+        @numba.njit
+        def run(p, x, noise, m):
+            acc = 0.0
+            n = x.shape[0]
+            for t in range(m):
+                for s in range(0, n, tile):
+                    e = min(s + tile, n)
+                    acc += transition(layout(x[s:e]), x[s], t, layout(noise[s:e]), p)[0, 0]
+            return acc
+        return run
 
-    @numba.njit
-    def transition_c(p, x, noise, m):
-        acc = 0.0
-        n = x.shape[0]
-        for t in range(m):
-            for s in range(0, n, tile):
-                e = min(s + tile, n)
-                acc += transition(x[s:e], x[s], t, noise[s:e], p)[0, 0]
-        return acc
-
-    @numba.njit
-    def transition_f(p, x, noise, m):
-        acc = 0.0
-        n = x.shape[0]
-        for t in range(m):
-            for s in range(0, n, tile):
-                e = min(s + tile, n)
-                acc += transition(column_major(x[s:e]), x[s], t, column_major(noise[s:e]), p)[0, 0]
-        return acc
+    transition_c, transition_f = transition_on(_as_is), transition_on(mod._column_major)
 
     @numba.njit
     def whole_a(p, rng, y, x, m, la, lam):
