@@ -40,20 +40,22 @@ loops are ``prange``): bit-identical results for any thread count.
 float32
 -------
 With float32 particles the noise is drawn as float32 (``standard_normal(..., dtype=float32)``, the
-float32 ziggurat) and the particle buffers are float32; the model functions see float64 tiles
-(the stored, rounded states) and their results are rounded to float32 when stored; weights,
-log-likelihood sums and moments stay float64. Why not float32 arithmetic: the models are written
-with Python float literals (``0.5 * x``) and float64 parameters, which numba types as float64
-whatever the array dtype (measured: ``float32 array * 0.5`` is a float64 array in numba, float32
-in NumPy >= 2), so a float32 model evaluation would differ between the backends and gain nothing
-inside numba; computing in float64 and storing float32 keeps the backends in agreement. The gain
-is the cheaper float32 normal draw and half the particle memory traffic, against two float32 <-> float64 tile conversions; measured on a
-loaded 2-core machine (Ob1 bootstrap, 1 thread, medians of 5): N_p = 10^3: 50.7 vs 49.0 ns per
-particle-step, N_p = 10^5: 69 vs 60 ns (float32 vs float64), i.e. no gain: the step is bound by
-the scalar exp, the normal draw, the model's division and the merge's branches, not by memory
-(N_p = 10^5 float64 particles are 0.8 MB, cache-resident), so halving storage cannot pay until
-the models are written dtype-generic (float32 literals). (Those timings predate the vectorised
-exp, which runs on the float64 weights and so helps both dtypes equally.)
+float32 ziggurat, inlined like the float64 one) and the particle buffers are float32; the model
+functions see float64 tiles (the stored, rounded states) and their results are rounded to float32
+when stored; weights, log-likelihood sums and moments stay float64. Why not float32 arithmetic: the
+models are written with Python float literals (``0.5 * x``) and float64 parameters, which numba
+types as float64 whatever the array dtype (measured: ``float32 array * 0.5`` is a float64 array in
+numba, float32 in NumPy >= 2), so a float32 model evaluation would differ between the backends and
+gain nothing inside numba; computing in float64 and storing float32 keeps the backends in
+agreement. What float32 then buys is half the particle memory and a float32 draw, and what it
+costs is three float32 <-> float64 tile conversions per tile. Measured (Ob1 bootstrap, 1 thread,
+2-core AMD EPYC, medians): the two inlined draws cost the same (3.1 vs 3.3 ns per draw, float32
+vs float64), and the filter is slower in float32 at every size (N_p = 10^3: 28.1 vs 22.6 ns per
+particle-step; 10^5: 28.1 vs 22.7; 10^6: 33.4 vs 28.6): the step is bound by arithmetic and
+branches, not by memory (10^5 float64 particles are 0.8 MB, cache-resident; at 10^6 memory adds
+about 5 ns per particle-step in both dtypes), so halving storage cannot pay for the conversions
+until the models are written dtype-generic (float32 literals), as the Cortex-M compiler already
+does for ``--precision float`` (:mod:`pfbench.mcu.modelcode`).
 """
 import numba as _numba
 import numpy as _np
