@@ -199,9 +199,13 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
         else:
             xn = _transition(_as64(xs[s:e]), ut, t, noise, p)
         if not first:
-            for i in range(k):
-                for c in range(n_x):
-                    xs[s + i, c] = xn[i, c]
+            if n_x == 1:  # no inner loop of one iteration
+                for i in range(k):
+                    xs[s + i, 0] = xn[i, 0]
+            else:
+                for i in range(k):
+                    for c in range(n_x):
+                        xs[s + i, c] = xn[i, c]
             xn = _stored(xn, xs[s:e])
         ll = _log_likelihood(yt, xn, ut, t, p)
         if first or asir:

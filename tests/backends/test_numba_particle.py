@@ -16,8 +16,9 @@ def kernel():
 def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
     """Uneven, sparse (70 % zeros), one-hot and flat weights, split into 1-3 output blocks. Catches
     an off-by-one in the count K_j (>= vs > against the positions), a zero-weight particle that keeps
-    its mark instead of handing it on, a block that starts from the wrong ancestor, and ties between
-    a position and a cdf value (flat weights put positions exactly on the cdf)."""
+    its mark instead of handing it on, a block that starts from the wrong ancestor, ties between
+    a position and a cdf value (flat weights put positions exactly on the cdf), and ``lam`` written
+    (or left alone, odd trials) against ``with_lam``."""
     rng = np.random.default_rng(11)
     for trial in range(600):
         n = int(rng.integers(1, 50))
@@ -42,13 +43,14 @@ def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
         src = np.arange(n, dtype=np.float64).reshape(n, 1)
         dst = np.full_like(src, -1.0)
         lam_src, lam_dst = src[:, 0] * 10, np.zeros(n)
+        with_lam = trial % 2 == 0
         bounds = np.unique(np.r_[0, np.sort(rng.integers(1, n + 1, int(rng.integers(0, 3)))), n])
         for i0, i1 in zip(bounds[:-1], bounds[1:]):
             kernel._merge_gather(cdf, n, u, ub[i0:i1].copy(), strat, int(i0), int(i1), src, dst, lam_src,
-                                 lam_dst, True, np.empty(n, np.int64), np.empty(n),
+                                 lam_dst, with_lam, np.empty(n, np.int64), np.empty(n),
                                  np.empty(n, np.int64))
         np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
-        np.testing.assert_array_equal(lam_dst, expect * 10.0)
+        np.testing.assert_array_equal(lam_dst, expect * 10.0 if with_lam else 0.0)
 
 
 def test_column_major_tiles_follow_the_instance_dimensions():
