@@ -100,34 +100,13 @@ def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by ke
     raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
 
 
-def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the overload below
-    return rng.standard_normal((k, n_noise), dtype=like.dtype)
-
-
-@_overload(_normals)
-def _normals_impl(rng, k, n_noise, like):
-    """(k, n_noise) standard normals in the particle dtype (float32 draws the float32 ziggurat).
-
-    NumPy's PCG64 + ziggurat inlined (:func:`pfbench.backends.pcg64.normals_into`,
-    :func:`~pfbench.backends.pcg64.normals_into_f32`: the numbers ``rng.standard_normal`` gives,
-    about 2.5x faster), where NumPy's state layout allows."""
-    f32 = like.dtype == _numba.types.float32
-    if _pcg64.layout_ok():
-        if f32:
-            def inline32(rng, k, n_noise, like):
-                out = _np.empty((k, n_noise), _np.float32)
-                _pcg64.normals_into_f32(rng, out)
-                return out
-            return inline32
-
-        def inline(rng, k, n_noise, like):
-            out = _np.empty((k, n_noise))
-            _pcg64.normals_into(rng, out)
-            return out
-        return inline
-    if f32:
-        return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float32)
-    return lambda rng, k, n_noise, like: rng.standard_normal((k, n_noise), _np.float64)
+@_register_jitable
+def _normals(rng, k, n_noise, like):
+    """(k, n_noise) standard normals in the particle dtype (float32: NumPy's float32 ziggurat),
+    the numbers ``rng.standard_normal`` gives (:func:`pfbench.backends.pcg64.fill_normals`)."""
+    out = _np.empty((k, n_noise), like.dtype)
+    _pcg64.fill_normals(rng, out)
+    return out
 
 
 @_intrinsic

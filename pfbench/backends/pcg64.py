@@ -16,6 +16,8 @@ the state in registers:
   stores the state back, so any later draw, by numba or by NumPy, continues the same stream;
 * :func:`normals_into_f32` does the same for ``standard_normal(dtype=np.float32)`` (NumPy's float32
   ziggurat on 32-bit words, two per PCG64 step, the spare half buffered in the state struct);
+* :func:`fill_normals` is what compiled code calls: the inlined draws, or numba's own where
+  :func:`layout_ok` says no;
 * :func:`layout_ok` checks once per process, from Python, that NumPy's PCG64 state struct is laid
   out as this module reads it (a pointer to two little-endian 128-bit integers, the build with a
   native 128-bit type); if not, the kernels keep numba's own draws (the same numbers, slower).
@@ -31,7 +33,7 @@ import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.extending import intrinsic, register_jitable
+from numba.extending import intrinsic, overload, register_jitable
 from pfbench.backends.fastexp import _bits, _from_bits
 from numba.np.random._constants import (fi_double, fi_float, ki_double, ki_float, wi_double, wi_float,
                                         ziggurat_nor_inv_r, ziggurat_nor_inv_r_f, ziggurat_nor_r,
@@ -242,6 +244,27 @@ def normals_into_f32(gen, out):
         flat[i] = x
     _store(gen, lo, hi)
     _store32(gen, has, buf)
+
+
+def fill_normals(gen, out):  # pragma: no cover - compiled through the overload below
+    """Fill ``out`` (float64 or float32, C order) with ``gen.standard_normal(out.shape, out.dtype)``:
+    the one way compiled code draws normals."""
+    out[...] = gen.standard_normal(out.shape, dtype=out.dtype)
+
+
+@overload(fill_normals)
+def _fill_normals_impl(gen, out):
+    """The inlined draws where NumPy's state struct is laid out as this module reads it
+    (:func:`layout_ok`, checked here at compile time), else numba's own draws (same numbers)."""
+    f32 = out.dtype == types.float32
+    if layout_ok():
+        return (lambda gen, out: normals_into_f32(gen, out)) if f32 else (lambda gen, out: normals_into(gen, out))
+    dt = np.float32 if f32 else np.float64
+
+    def library(gen, out):
+        flat = out.reshape(out.size)
+        flat[:] = gen.standard_normal(out.size, dt)
+    return library
 
 
 def check_generators(gens) -> None:

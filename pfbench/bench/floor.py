@@ -10,7 +10,7 @@ ns per particle-step reads as a multiple of what the machine needs at the least.
 * ``normal``: the standard-normal draws alone (numba's ``Generator.standard_normal``, a ziggurat
   on PCG64 as in NumPy), summed so the draws cannot be optimised away;
 * ``normal_engine``: the same draws (the same numbers) from the engine's inlined PCG64 + ziggurat
-  (:func:`pfbench.backends.pcg64.normals_into`), as the kernels draw them;
+  (:func:`pfbench.backends.pcg64.fill_normals`), as the kernels draw them;
 * ``exp``: ``exp(-z^2/2)`` over a fixed array alone (the math library's exp, in a reduction);
 * ``exp_engine``: the same exponentials with the engine's own branch-free exp
   (:func:`pfbench.backends.fastexp.exp_scalar`) in a loop of its own, as the kernels run it
@@ -35,7 +35,7 @@ import numpy as np
 
 from ..backends.cache import njit
 from ..backends.fastexp import exp_scalar
-from ..backends.pcg64 import normals_into
+from ..backends.pcg64 import fill_normals
 
 
 @njit(nogil=True)
@@ -53,7 +53,7 @@ def _floor_engine(rng, n, m, e):
     acc = 0.0
     z = np.empty(n)
     for _ in range(m):
-        normals_into(rng, z)
+        fill_normals(rng, z)
         for i in range(n):
             e[i] = exp_scalar(-0.5 * z[i] * z[i])
         for i in range(n):
@@ -87,7 +87,7 @@ def _normals_engine(rng, n, m):
     acc = 0.0
     z = np.empty(n)
     for _ in range(m):
-        normals_into(rng, z)
+        fill_normals(rng, z)
         for i in range(n):
             acc += z[i]
     return acc

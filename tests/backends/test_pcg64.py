@@ -76,3 +76,26 @@ def test_float32_normals_are_numpys_and_the_half_word_buffer_carries_over(seed):
     _fill32(a, out2)
     assert np.array_equal(out2, b.standard_normal((11, 2), dtype=np.float32))
     assert a.standard_normal() == b.standard_normal()
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_fill_normals_falls_back_to_numbas_draws_with_the_same_numbers(monkeypatch, dtype):
+    """Where NumPy's state struct is not laid out as read, ``fill_normals`` must not read it: it
+    falls back to the Generator's own draws (the same numbers). The fallback is taken from the
+    overload and run as plain Python. Catches a fallback that still reads the struct, or one that
+    draws another shape or dtype."""
+    monkeypatch.setattr(pcg64, "layout_ok", lambda: False)
+    out = np.empty((7, 3), dtype)
+    impl = pcg64._fill_normals_impl(numba.typeof(np.random.default_rng(0)), numba.typeof(out))
+    assert "normals_into" not in impl.__code__.co_names
+    impl(np.random.default_rng(5), out)
+    assert np.array_equal(out, np.random.default_rng(5).standard_normal((7, 3), dtype=dtype))
+    monkeypatch.undo()
+    out2 = np.empty((7, 3), dtype)
+    _fill_via(np.random.default_rng(5), out2)
+    assert np.array_equal(out2, out)
+
+
+@numba.njit
+def _fill_via(rng, out):
+    pcg64.fill_normals(rng, out)
