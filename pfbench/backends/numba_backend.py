@@ -42,7 +42,7 @@ from . import cache, pcg64
 _HERE = Path(__file__).resolve().parent
 #: family -> (kernel module file, the model functions it calls as ``_<name>``)
 FAMILIES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "particle": ("numba_particle.py", ("initial", "transition", "log_likelihood")),
+    "particle": ("numba_particle.py", ("transition", "log_likelihood")),
 }
 _LOCK = threading.RLock()
 _MODULES: dict[tuple[str, type, str, bool], object] = {}
@@ -251,8 +251,12 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
         raise ValueError(f"{len(brngs)} block streams for {x.shape[1]} particles in {bounds.shape[0] - 1} blocks")
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = kernel_module(model, "particle", scheme)
+    initial = model.kernel_functions()["initial"]
+    for g in range(x.shape[0]):  # first from the group's stream, filter after filter (as NumPy)
+        x[g] = initial(rng, x.shape[1], p)
     args = (p, rng, brngs, y, u, x, int(model.n_noise), int(method),
-            int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w)
+            int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
+            *work_arrays(x, bounds.shape[0] - 1))
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
         if len(brngs) > 1 and n_threads != 1:
@@ -264,3 +268,18 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
                 mod.run_group_parallel(*args)
         else:
             mod.run_group(*args)
+
+
+def work_arrays(x, n_blocks: int) -> tuple:
+    """The particle kernel's work arrays for particles ``x`` (G, N_p, n_x) in ``n_blocks`` stream
+    blocks, in its argument order: the two particle buffers, the log-weights, six float rows of
+    N_p (weights, running sum, log-weights, lambda, first-stage lambda, uniforms), two int rows
+    (indices, merge marks), four per-block rows (max, weight sum, sum w^2, cdf offset), the
+    per-block moments and the per-filter (current buffer, flat-weights) flags.
+
+    Allocated here rather than in the kernel: each array constructor the kernel compiled cost
+    about 0.1 s of a cold start."""
+    G, n, n_x = x.shape
+    return (np.empty((2, G, n, n_x), x.dtype), np.empty((G, n)), np.empty((6, n)),
+            np.empty((2, n), np.int64), np.empty((4, n_blocks)), np.empty((2, n_blocks, n_x)),
+            np.empty((2, G), np.int64))

@@ -2,8 +2,9 @@
 
 This is the compiled twin of :func:`pfbench.backends.numpy_backend.run_group`: the same steps, the
 same random draws in the same order, the same floating-point operations for everything that feeds
-back into the filter. It calls the model through three module globals, ``_initial``,
-``_transition`` and ``_log_likelihood``. As a file it is importable (they are placeholders here);
+back into the filter. It calls the model through two module globals, ``_transition`` and
+``_log_likelihood`` (the initial particles come in ``x``, drawn by the caller with the model's
+``initial``, as the NumPy backend draws them). As a file it is importable (they are placeholders here);
 :func:`pfbench.backends.numba_backend.kernel_module` writes a copy of it per (model class,
 resampling scheme) with the model's compiled functions bound to those names and the scheme bound to
 ``_resample``/``_SCHEME`` at the end, so numba caches the whole kernel, model inlined, on disk.
@@ -82,10 +83,6 @@ _SCHEME = -1
 #: are handed to the model typed column-major (:func:`_column_major`)
 _F_TILES = False
 _prange = _numba.prange
-
-
-def _initial(rng, n, p):  # pragma: no cover - bound per model in the generated module
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
 
 
 def _transition(x, u, t, noise, p):  # pragma: no cover - bound per model
@@ -391,17 +388,19 @@ def _gather(idx, i0, i1, src, dst, lam_src, lam_dst, with_lam):
 
 
 def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,
-               resampled, degen, hist_x, hist_w):
+               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate):
     """Run a group of G independent filters over all steps (random streams in documented order).
 
-    x: (G, n, n_x) particle buffer (its dtype is the particle dtype; holds the final particles on
-    return); outputs (G, M, ...). rng: the group's generator; brngs: a list of the B
+    x: (G, n, n_x) particle buffer (its dtype is the particle dtype) holding the initial particles
+    (the model's ``initial``, drawn by the caller from ``rng``, filter after filter) and the final
+    particles on return; outputs (G, M, ...). rng: the group's generator; brngs: a list of the B
     block generators (``[rng]`` when B = 1); bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w
     (G, M, n): the weighted particles of every step (before resampling) when their second dimension
     is M; pass (G, 0, ...) arrays to store nothing. method: a
     :class:`~pfbench.filters.methods.Method` code of the particle family (MultiPDF runs bootstrap
     sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
-    count.
+    count. xs ... gstate: work arrays (:func:`pfbench.backends.numba_backend.work_arrays`), allocated
+    by the caller because every array constructor compiled here is another 0.1 s of a cold start.
     """
     G = x.shape[0]
     n = x.shape[1]
@@ -410,38 +409,33 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     nb = bounds.shape[0] - 1
     logn = _np.log(n)
     mlogn = -logn
-    # np.empty + loops rather than np.zeros/full/ones: each array constructor is another overload
-    # to compile (0.1-0.3 s of a cold start each)
-    lw = _np.empty((G, n))
-    flat = _np.empty(G, _np.bool_)
-    cur = _np.empty(G, _np.int64)
+    cur = gstate[0]
+    flat = gstate[1]  # 1: every log-weight is -log n (after resampling)
     for g in range(G):
-        flat[g] = True
+        flat[g] = 1
         cur[g] = 0
         for i in range(n):
             lw[g, i] = mlogn
-    xs = _np.empty((2, G, n, n_x), x.dtype)
-    wu = _np.empty(n)
-    cdf = _np.empty(n)
-    la = _np.empty(n)
-    lam = _np.empty(n)
-    lam_all = _np.empty(n)
+    wu = fwork[0]
+    cdf = fwork[1]
+    la = fwork[2]
+    lam = fwork[3]
+    lam_all = fwork[4]
+    ub = fwork[5]
     for i in range(n):
         lam[i] = 0.0
-    idx = _np.empty(n, _np.int64)
-    kk = _np.empty(n, _np.int64)
-    bmax = _np.empty(nb)
-    bsum = _np.empty(nb)
-    bs2 = _np.empty(nb)
-    off = _np.empty(nb)
-    bsx = _np.empty((nb, n_x))
-    bsxx = _np.empty((nb, n_x))
-    ub = _np.empty(1)
+    idx = iwork[0]
+    kk = iwork[1]
+    bmax = bwork[0]
+    bsum = bwork[1]
+    bs2 = bwork[2]
+    off = bwork[3]
+    bsx = bmom[0]
+    bsxx = bmom[1]
     for g in range(G):
-        x0 = _initial(rng, n, p)
         for i in range(n):
             for c in range(n_x):
-                xs[0, g, i, c] = x0[i, c]
+                xs[0, g, i, c] = x[g, i, c]
     for t in range(M):
         yt = y[t]
         ut = u[t]
@@ -453,7 +447,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                 src = xs[cur[g], g]
                 for b in _prange(nb):
                     bmax[b] = _pass_a(p, brngs[b], yt, ut, t, src, bounds[b], bounds[b + 1], n_noise,
-                                      lwg, flat[g], mlogn, fs, lam, method == _ASIR and not fs, lam_all, la)
+                                      lwg, flat[g] == 1, mlogn, fs, lam, method == _ASIR and not fs, lam_all, la)
                 m = -_np.inf
                 for b in range(nb):
                     if bmax[b] > m:
@@ -461,7 +455,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                 deg = not (m > -_np.inf)
                 if deg:  # every likelihood zero: keep the previous weights
                     for i in range(n):
-                        la[i] = mlogn if flat[g] else lwg[i]
+                        la[i] = mlogn if flat[g] == 1 else lwg[i]
                         if la[i] > m:
                             m = la[i]
                 for b in _prange(nb):
@@ -510,11 +504,16 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                     dst = xs[1 - cur[g], g]
                     if _SCHEME == 0 or _SCHEME == 1 or (_SCHEME == -1 and scheme <= 1):  # pruned at compile time
                         strat = scheme == 1
-                        uu = 0.0 if strat else rng.random()
+                        uu = 0.0
+                        if not strat:
+                            _pcg64.fill_uniforms(rng, ub[:1])
+                            uu = ub[0]
                         for b in _prange(nb):
                             i0 = bounds[b]
                             i1 = bounds[b + 1]
-                            ubb = brngs[b].random(i1 - i0) if strat else ub
+                            ubb = ub[i0:i1]
+                            if strat:
+                                _pcg64.fill_uniforms(brngs[b], ubb)
                             _merge_gather(cdf, n, uu, ubb, strat, i0, i1, src, dst, lam_all, lam, fs, idx,
                                           la, kk)  # la (the log-weights) is free until the next pass A
                     else:
@@ -524,12 +523,12 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                         for b in _prange(nb):
                             _gather(idx, bounds[b], bounds[b + 1], src, dst, lam_all, lam, fs)
                     cur[g] = 1 - cur[g]
-                    flat[g] = True
+                    flat[g] = 1
                 elif not fs:
                     lt = _np.log(total)
                     for i in range(n):
                         lwg[i] = _np.log(wu[i]) - lt if wu[i] > 0.0 else -_np.inf
-                    flat[g] = False
+                    flat[g] = 0
     for g in range(G):
         for i in range(n):
             for c in range(n_x):

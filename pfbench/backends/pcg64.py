@@ -16,8 +16,8 @@ the state in registers:
   stores the state back, so any later draw, by numba or by NumPy, continues the same stream;
 * :func:`normals_into_f32` does the same for ``standard_normal(dtype=np.float32)`` (NumPy's float32
   ziggurat on 32-bit words, two per PCG64 step, the spare half buffered in the state struct);
-* :func:`fill_normals` is what compiled code calls: the inlined draws, or numba's own where
-  :func:`layout_ok` says no;
+* :func:`fill_normals` and :func:`fill_uniforms` (``Generator.random``: NumPy's ``next_double``)
+  are what compiled code calls: the inlined draws, or numba's own where :func:`layout_ok` says no;
 * :func:`layout_ok` checks once per process, from Python, that NumPy's PCG64 state struct is laid
   out as this module reads it (a pointer to two little-endian 128-bit integers, the build with a
   native 128-bit type); if not, the kernels keep numba's own draws (the same numbers, slower).
@@ -264,6 +264,35 @@ def _fill_normals_impl(gen, out):
     def library(gen, out):
         flat = out.reshape(out.size)
         flat[:] = gen.standard_normal(out.size, dt)
+    return library
+
+
+@register_jitable
+def uniforms_into(gen, out):
+    """Fill the 1-D float64 array ``out`` with ``gen.random(out.size)``: NumPy's ``next_double``
+    (the top 53 bits of each 64-bit PCG64 output), the generator advanced as far."""
+    lo, hi, clo, chi = _load(gen)
+    for i in range(out.shape[0]):
+        lo, hi, r = _step(lo, hi, clo, chi)
+        out[i] = _double(r)
+    _store(gen, lo, hi)
+
+
+def fill_uniforms(gen, out):  # pragma: no cover - compiled through the overload below
+    """Fill the 1-D float64 array ``out`` with ``gen.random(out.size)``: the one way compiled code
+    draws uniforms."""
+    out[:] = gen.random(out.size)
+
+
+@overload(fill_uniforms)
+def _fill_uniforms_impl(gen, out):
+    """The inlined draws where :func:`layout_ok`, else numba's own (same numbers)."""
+    if layout_ok():
+        return lambda gen, out: uniforms_into(gen, out)
+
+    def library(gen, out):
+        for i in range(out.shape[0]):
+            out[i] = gen.random()
     return library
 
 

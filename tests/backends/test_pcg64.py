@@ -99,3 +99,37 @@ def test_fill_normals_falls_back_to_numbas_draws_with_the_same_numbers(monkeypat
 @numba.njit
 def _fill_via(rng, out):
     pcg64.fill_normals(rng, out)
+
+
+@numba.njit
+def _uniforms(rng, out):
+    pcg64.fill_uniforms(rng, out)
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_uniforms_are_numpys_and_the_stream_continues(seed):
+    """``fill_uniforms`` (systematic's one uniform, stratified's one per particle) equals
+    ``Generator.random`` bit for bit, on a whole array and on a slice, and the next normal, uniform
+    and integer after them are NumPy's. Catches the wrong 53 bits kept, a wrong scale, a state not
+    stored back and a slice written past its end."""
+    a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+    out = np.empty(10_001)
+    _uniforms(a, out)
+    assert np.array_equal(out, b.random(10_001))
+    buf = np.full(9, -1.0)
+    _uniforms(a, buf[2:5])
+    assert np.array_equal(buf[2:5], b.random(3)) and np.all(buf[:2] == -1.0) and np.all(buf[5:] == -1.0)
+    assert a.standard_normal() == b.standard_normal()
+    assert a.random() == b.random()
+    assert a.integers(0, 2 ** 63) == b.integers(0, 2 ** 63)
+
+
+def test_fill_uniforms_falls_back_to_numbas_draws_with_the_same_numbers(monkeypatch):
+    """Without the struct layout, ``fill_uniforms`` draws through the Generator (same numbers).
+    Catches a fallback that still reads the struct."""
+    monkeypatch.setattr(pcg64, "layout_ok", lambda: False)
+    out = np.empty(5)
+    impl = pcg64._fill_uniforms_impl(numba.typeof(np.random.default_rng(0)), numba.typeof(out))
+    assert "uniforms_into" not in impl.__code__.co_names
+    impl(np.random.default_rng(2), out)
+    assert np.array_equal(out, np.random.default_rng(2).random(5))
