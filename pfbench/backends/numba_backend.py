@@ -205,14 +205,15 @@ def warm_up(model, p, y, u, dtype, scheme=0, parallel: bool = False) -> None:
     """Compile (or load) the particle kernel for these argument types outside any timed region.
 
     numba compiles on the first call, so one call on a single step and particle with a
-    throwaway generator; the caller's random streams are not touched. ``parallel`` also warms the
-    all-threads compilation (only runs that use it pay its compile).
+    throwaway generator; the caller's random streams are not touched. ``parallel`` warms the
+    all-threads compilation instead of the serial one: a call compiles only the variant it runs.
     """
-    key = (type(model), np.dtype(dtype).str, int(scheme), tuple(type(v).__name__ for v in p), parallel)
+    key = (type(model), column_major_tiles(model), np.dtype(dtype).str, int(scheme),
+           tuple(type(v).__name__ for v in p), parallel)
     if key in _WARM:
         return
     n_x = model.n_x
-    for par in ((False, True) if parallel else (False,)):
+    for par in ((True,) if parallel else (False,)):
         x = np.empty((1, 2 if par else 1, n_x), dtype=dtype)
         G, n = 1, x.shape[1]
         rng = np.random.default_rng(0)
