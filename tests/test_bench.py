@@ -10,6 +10,7 @@ import pytest
 
 from pfbench.bench import c_reference, main_text, run_bench, scaling, startup, summarize
 from pfbench.bench.report import TARGETS, check
+from pfbench.bench.timing import interleaved, paired_ratio
 
 HAVE_CC = c_reference.compiler() is not None
 
@@ -88,6 +89,35 @@ def test_every_target_verdict_is_computed_from_its_value(res):
     text = "\n".join(main_text(res))
     for t in res["targets"]:  # printed with its target next to it
         assert f"target {t['op']} {t['bound']:g}" in text
+
+
+def test_paired_ratio_divides_within_rounds():
+    """A machine that slows down between rounds must not skew the ratio: per-round ratios 1, 1, 1
+    (a round at 10x the time for both timers) give 1, where the ratio of the medians would give
+    0.1. Catches median(a) / median(b) in place of the per-round median."""
+    assert paired_ratio([1.0, 10.0, 1.0], [1.0, 10.0, 1.0]) == 1.0
+    assert paired_ratio([1.0, 10.0, 2.0], [10.0, 10.0, 20.0]) == pytest.approx(0.1)
+    assert paired_ratio([1.0, 1.0, 10.0], [1.0, 10.0, 10.0]) == 1.0  # medians: 1 / 10
+    assert paired_ratio([], []) is None
+    seen = []
+    out = interleaved({"a": lambda: seen.append("a") or 1.0, "b": lambda: seen.append("b") or 2.0}, 3)
+    assert seen == ["a", "b"] * 3 and out == {"a": [1.0] * 3, "b": [2.0] * 3}
+
+
+def test_targets_are_judged_on_the_paired_rounds(res):
+    """Every target of the main section takes its value from the interleaved rounds, computed
+    from the recorded timings. Catches a target still judged on section medians taken apart, or a
+    paired ratio of the wrong timers."""
+    pd = res["paired"]
+    ns = pd["ns"]
+    assert pd["rounds"] >= 5 and all(len(v) == pd["rounds"] for v in ns.values())
+    got = {t["target"]: t["value"] for t in res["targets"]}
+    assert got["numba_over_floor"] == pytest.approx(paired_ratio(ns["numba"], ns["floor"]))
+    assert got["float32_speedup_1e5"] == pytest.approx(paired_ratio(ns["big_float64"], ns["big_float32"]))
+    assert got["threads_speedup_1e5"] == pytest.approx(paired_ratio(ns["threads_1_100000"], ns["threads_all_100000"]))
+    if "c_fast" in ns:
+        assert got["numba_over_c"] == pytest.approx(paired_ratio(ns["numba"], ns["c_fast"]))
+    assert any(line.startswith("paired rounds") for line in main_text(res))
 
 
 def test_without_c_the_ratios_say_not_measured(res):

@@ -17,6 +17,9 @@ Sections (each writes its JSON into the directory of ``--out``, default ``result
     drive's 125 us sampling period;
   - the ``particles`` library's bootstrap filter (``scripts/bench_particles.py`` in
     ``.venv-particles``, when it exists; ``make bench`` creates it);
+  - the timings behind the targets once more in interleaved rounds (:func:`paired_rounds`: every
+    timer once per round), so that each target's ratio is a median of ratios taken back to back on
+    the same machine speed;
   - every ratio printed next to its target with a computed verdict (:mod:`pfbench.bench.report`).
 
 * **startup** (``startup.json``, :mod:`pfbench.bench.startup`): cold and warm wall time of
@@ -37,7 +40,7 @@ from pathlib import Path
 import click
 
 from .floor import breakdown_ns, floor_ns
-from .timing import filter_ns, particles_ns
+from .timing import filter_ns, interleaved, paired_ratio, particles_ns
 
 CONFIGS = ((1000, 1000), (500, 1000), (500, 500), (100, 100_000))
 QUICK_CONFIGS = ((200, 1000), (20, 100_000))
@@ -63,7 +66,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     model = models.get("ob1")
     configs = QUICK_CONFIGS if quick else CONFIGS
     thread_cfgs = QUICK_THREAD_CONFIGS if quick else THREAD_CONFIGS
-    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1
+    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1 + 1
     bar = tqdm(total=n_jobs, desc="bench", disable=not progress, file=sys.stderr, leave=False)
     rows, floors, c_rows = [], [], []
     c_note = None if with_c else "not run: --no-c"
@@ -128,6 +131,9 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     pmsm["margin_x"] = pmsm["period_us"] / max(pmsm["us_per_step_mean"], pmsm["us_per_step_max"])
     bar.update()
     key, big = configs[0], configs[-1]
+    bar.set_postfix_str("paired rounds")
+    paired = paired_rounds(model, key, big, thread_cfgs, max(5, repeats), c_note is None and bool(c_rows))
+    bar.update()
     bar.set_postfix_str("kernel parts")
     from .passes import passes_ns
 
@@ -138,16 +144,49 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     bar.update()
     bar.close()
 
-    s, targets = summarize(rows, floors, c_rows, threads, part, key, big)
+    s, targets = summarize(rows, floors, c_rows, threads, part, key, big, paired)
     return provenance(kind="bench", repeats=repeats, quick=quick, rows=rows, floors=floors, c_rows=c_rows,
                       c_note=c_note, threads=threads, multipdf=multipdf, pmsm_smc=pmsm, kernel_parts=parts,
-                      particles_library=part, summary=s, targets=targets)
+                      particles_library=part, paired=paired, summary=s, targets=targets)
 
 
-def summarize(rows, floors, c_rows, threads, part, key, big) -> tuple[dict, list]:
+def paired_rounds(model, key, big, thread_cfgs, rounds: int, with_c: bool) -> dict:
+    """The timings behind the targets, taken in interleaved rounds (:func:`interleaved`): numba
+    float64 1 thread, the floor and the C reference (fast RNG) at ``key``; numba float64 and
+    float32 at ``big``; 1 thread and all threads at each of ``thread_cfgs``. Each timer is one run
+    (compilation excluded). Returns ``{"rounds": R, "ns": name -> R timings, "ratios": name ->
+    median of the per-round ratios}``."""
+    from . import c_reference
+
+    (m, n), (mb, nbig) = key, big
+    tk, tb = model.simulate(m, seed=1), model.simulate(mb, seed=1)
+    measures = {"numba": lambda: filter_ns(model, tk, n, "numba", "float64", 1, n_threads=1),
+                "floor": lambda: floor_ns(n, m, 1, "numba")}
+    if with_c:
+        measures["c_fast"] = lambda: c_reference.filter_ns("fast", m, n, 1)["ns_per_particle_step"]
+    measures["big_float64"] = lambda: filter_ns(model, tb, nbig, "numba", "float64", 1, n_threads=1)
+    measures["big_float32"] = lambda: filter_ns(model, tb, nbig, "numba", "float32", 1, n_threads=1)
+    for mt, nt in thread_cfgs:
+        tt = model.simulate(mt, seed=1)
+        measures[f"threads_1_{nt}"] = lambda tt=tt, nt=nt: filter_ns(model, tt, nt, "numba", "float64", 1, n_threads=1)
+        measures[f"threads_all_{nt}"] = lambda tt=tt, nt=nt: filter_ns(model, tt, nt, "numba", "float64", 1,
+                                                                     n_threads=None)
+    ns = interleaved(measures, rounds)
+    ratios = {"numba_over_c": paired_ratio(ns["numba"], ns["c_fast"]) if with_c else None,
+              "numba_over_floor": paired_ratio(ns["numba"], ns["floor"]),
+              "float32_speedup_big": paired_ratio(ns["big_float64"], ns["big_float32"])}
+    for _, nt in thread_cfgs:
+        ratios[f"threads_speedup_{nt}"] = paired_ratio(ns[f"threads_1_{nt}"], ns[f"threads_all_{nt}"])
+    return {"rounds": int(rounds), "ns": ns, "ratios": ratios}
+
+
+def summarize(rows, floors, c_rows, threads, part, key, big, paired=None) -> tuple[dict, list]:
     """The ratios of the main section (all from timings of the same run) and the targets with
-    computed verdicts. ``key`` = (M, N_p) of the headline configuration, ``big`` the large one."""
-    from .report import check
+    computed verdicts. ``key`` = (M, N_p) of the headline configuration, ``big`` the large one.
+    With ``paired`` (:func:`paired_rounds`) the targets are judged on its per-round ratios, which
+    a change of the machine's speed between two sections cannot skew; the ratios of the section
+    medians stay in the summary beside them."""
+    from .report import TARGETS, check
 
     by = {(r["steps"], r["particles"], r["backend"], r["dtype"]): r["ns_per_particle_step"] for r in rows}
     cby = {(r["steps"], r["particles"], r["variant"]): r["ns_per_particle_step"] for r in c_rows}
@@ -173,14 +212,23 @@ def summarize(rows, floors, c_rows, threads, part, key, big) -> tuple[dict, list
     for t in threads:
         s[f"threads_speedup_{t['particles']:.0e}".replace("+0", "")] = t["speedup"]
     m_lab = f"M={key[0]}, N_p={key[1]}"
-    targets = [check("numba_over_c", s["numba_over_c"],
-                     f"numba float64 1 thread / C ({s['c_best_variant'] or 'n/a'} RNG), {m_lab}"),
-               check("numba_over_floor", s["numba_over_floor"], f"numba float64 1 thread / floor, {m_lab}"),
-               check("float32_speedup_1e5", s["float32_speedup_big"] if big[1] == 100_000 else None)]
+    pr = (paired or {}).get("ratios", {})
+    how = f", paired over {paired['rounds']} rounds" if paired else ""
+    if paired:
+        s["paired"] = dict(pr)
+    c_lab = "fast" if paired and pr.get("numba_over_c") is not None else (s["c_best_variant"] or "n/a")
+    targets = [check("numba_over_c", pr.get("numba_over_c") if paired else s["numba_over_c"],
+                     f"numba float64 1 thread / C ({c_lab} RNG), {m_lab}{how}"),
+               check("numba_over_floor", pr.get("numba_over_floor") if paired else s["numba_over_floor"],
+                     f"numba float64 1 thread / floor, {m_lab}{how}"),
+               check("float32_speedup_1e5", (pr.get("float32_speedup_big") if paired else s["float32_speedup_big"])
+                     if big[1] == 100_000 else None, None if not paired else
+                     f"numba float32 vs float64, N_p = 10^5 (speed-up){how}")]
     for t in threads:
         k = {100_000: "threads_speedup_1e5", 1_000_000: "threads_speedup_1e6"}.get(t["particles"])
         if k:
-            targets.append(check(k, t["speedup"]))
+            v = pr.get(f"threads_speedup_{t['particles']}") if paired else t["speedup"]
+            targets.append(check(k, v, None if not paired else f"{TARGETS[k].label}{how}"))
     return s, targets
 
 
@@ -253,6 +301,14 @@ def main_text(res: dict) -> list[str]:
                f"floor {fl['numba_ns']:.1f}); the other {rest:.1f} ns are the rest of the step "
                f"(transition, likelihood arithmetic, weight normalisation, moments, resampling); one pass "
                f"over the particles costs {b['memory_pass']:.2f} ns at this N_p")
+    pd = res.get("paired")
+    if pd:
+        import statistics
+
+        med = {k: statistics.median(v) for k, v in pd["ns"].items()}
+        out.append(f"paired rounds ({pd['rounds']} rounds, every timer once per round, ratios within a round; "
+                   "the targets below use these): median ns " + ", ".join(f"{k} {v:.1f}" for k, v in med.items())
+                   + "; ratios " + ", ".join(f"{k} {_f(v, '.2f')}" for k, v in pd["ratios"].items()))
     if res.get("kernel_parts"):
         from .passes import passes_text
 

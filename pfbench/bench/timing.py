@@ -37,3 +37,24 @@ def particles_ns(m: int, n: int, repeats: int) -> dict | None:
     if r.returncode != 0:
         return {"error": r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "failed"}
     return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def interleaved(measures: dict, rounds: int) -> dict:
+    """Run the timers ``measures`` (name -> callable returning ns) in ``rounds`` interleaved rounds
+    (round r runs every timer once, in order) and return name -> list of the ``rounds`` timings.
+
+    On a shared machine the speed can change by a large factor within a minute (seen here: the
+    same kernel at 22 and at 38 ns per particle-step in one run), so two medians taken minutes apart
+    can compare a fast phase with a slow one; timings taken back to back in one round see the same
+    machine, and :func:`paired_ratio` divides within rounds."""
+    out = {k: [] for k in measures}
+    for _ in range(max(int(rounds), 1)):
+        for k, f in measures.items():
+            out[k].append(float(f()))
+    return out
+
+
+def paired_ratio(a: list, b: list) -> float | None:
+    """Median over rounds of a_r / b_r (None without a complete pair)."""
+    pairs = [x / y for x, y in zip(a, b) if x is not None and y is not None and y > 0]
+    return statistics.median(pairs) if pairs else None
