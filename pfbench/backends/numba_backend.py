@@ -241,7 +241,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
 
     from numba.core.errors import NumbaPendingDeprecationWarning
 
-    from .numpy_backend import BLOCK, block_bounds
+    from .numpy_backend import BLOCK, block_bounds, draw_initial
 
     bounds = block_bounds(x.shape[1], int(block or BLOCK))
     if hist_x is None:
@@ -252,9 +252,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
         raise ValueError(f"{len(brngs)} block streams for {x.shape[1]} particles in {bounds.shape[0] - 1} blocks")
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = kernel_module(model, "particle", scheme)
-    initial = model.kernel_functions()["initial"]
-    for g in range(x.shape[0]):  # first from the group's stream, filter after filter (as NumPy)
-        x[g] = initial(rng, x.shape[1], p)
+    draw_initial(model.kernel_functions()["initial"], p, rng, x)  # in NumPy, as the NumPy backend
     args = (p, rng, brngs, y, u, x, int(model.n_noise), int(method),
             int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
             *work_arrays(x, bounds.shape[0] - 1))

@@ -416,22 +416,12 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
         cur[g] = 0
         for i in range(n):
             lw[g, i] = mlogn
-    wu = fwork[0]
-    cdf = fwork[1]
-    la = fwork[2]
-    lam = fwork[3]
-    lam_all = fwork[4]
-    ub = fwork[5]
+    wu, cdf, la, lam, lam_all, ub = fwork[0], fwork[1], fwork[2], fwork[3], fwork[4], fwork[5]
+    idx, kk = iwork[0], iwork[1]
+    bmax, bsum, bs2, off = bwork[0], bwork[1], bwork[2], bwork[3]
+    bsx, bsxx = bmom[0], bmom[1]
     for i in range(n):
         lam[i] = 0.0
-    idx = iwork[0]
-    kk = iwork[1]
-    bmax = bwork[0]
-    bsum = bwork[1]
-    bs2 = bwork[2]
-    off = bwork[3]
-    bsx = bmom[0]
-    bsxx = bmom[1]
     for g in range(G):
         for i in range(n):
             for c in range(n_x):

@@ -144,6 +144,13 @@ def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
     return np.minimum(np.searchsorted(cdf, positions, side="right"), n - 1)
 
 
+def draw_initial(initial, p, rng, x) -> None:
+    """x[g] = initial(rng, N_p, p) for g = 0, 1, ..., G-1: the initial particles of a group, filter
+    after filter from the group's stream (step 1 of the documented draw order; both backends)."""
+    for g in range(x.shape[0]):
+        x[g] = initial(rng, x.shape[1], p)
+
+
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
               est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None, *, brngs=None,
               n_threads=None, block: int | None = None) -> None:
@@ -165,8 +172,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
     n_noise = model.n_noise
     logn = np.log(n)
     lw = np.full((G, n), -logn)
-    for g in range(G):
-        x[g] = initial(rng, n, p)
+    draw_initial(initial, p, rng, x)
     for t in range(y.shape[0]):
         yt, ut = y[t], u[t]
         for g in range(G):
