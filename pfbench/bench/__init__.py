@@ -212,23 +212,22 @@ def summarize(rows, floors, c_rows, threads, part, key, big, paired=None) -> tup
     for t in threads:
         s[f"threads_speedup_{t['particles']:.0e}".replace("+0", "")] = t["speedup"]
     m_lab = f"M={key[0]}, N_p={key[1]}"
-    pr = (paired or {}).get("ratios", {})
-    how = f", paired over {paired['rounds']} rounds" if paired else ""
+    unpaired = {"numba_over_c": s["numba_over_c"], "numba_over_floor": s["numba_over_floor"],
+                "float32_speedup_big": s["float32_speedup_big"],
+                **{f"threads_speedup_{t['particles']}": t["speedup"] for t in threads}}
+    src, how = (paired["ratios"], f", paired over {paired['rounds']} rounds") if paired else (unpaired, "")
     if paired:
-        s["paired"] = dict(pr)
-    c_lab = "fast" if paired and pr.get("numba_over_c") is not None else (s["c_best_variant"] or "n/a")
-    targets = [check("numba_over_c", pr.get("numba_over_c") if paired else s["numba_over_c"],
+        s["paired"] = dict(src)
+    c_lab = "fast" if paired else (s["c_best_variant"] or "n/a")
+    targets = [check("numba_over_c", src.get("numba_over_c"),
                      f"numba float64 1 thread / C ({c_lab} RNG), {m_lab}{how}"),
-               check("numba_over_floor", pr.get("numba_over_floor") if paired else s["numba_over_floor"],
-                     f"numba float64 1 thread / floor, {m_lab}{how}"),
-               check("float32_speedup_1e5", (pr.get("float32_speedup_big") if paired else s["float32_speedup_big"])
-                     if big[1] == 100_000 else None, None if not paired else
-                     f"numba float32 vs float64, N_p = 10^5 (speed-up){how}")]
+               check("numba_over_floor", src["numba_over_floor"], f"numba float64 1 thread / floor, {m_lab}{how}"),
+               check("float32_speedup_1e5", src["float32_speedup_big"] if big[1] == 100_000 else None,
+                     f"{TARGETS['float32_speedup_1e5'].label}{how}")]
     for t in threads:
         k = {100_000: "threads_speedup_1e5", 1_000_000: "threads_speedup_1e6"}.get(t["particles"])
         if k:
-            v = pr.get(f"threads_speedup_{t['particles']}") if paired else t["speedup"]
-            targets.append(check(k, v, None if not paired else f"{TARGETS[k].label}{how}"))
+            targets.append(check(k, src.get(f"threads_speedup_{t['particles']}"), f"{TARGETS[k].label}{how}"))
     return s, targets
 
 
