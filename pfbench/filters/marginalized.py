@@ -36,12 +36,13 @@ ignored ([MultiPDF] §5: "the performance of MPF is independent of the number of
 result then equals the exact Kalman filter on a linear-Gaussian model. :func:`run_kalman`
 (``method="kalman"``) runs that same recursion and refuses models with nonlinear states.
 
-Backends and random numbers. The step math is written once, as vectorised ``register_jitable``
+Backends and random numbers. The ``numpy`` driver runs the step math below as vectorised NumPy
 helpers (:func:`kalman_predict` = :func:`condition_nonlinear` + :func:`time_update`,
-:func:`kalman_update`, :func:`mixture_moments`); the ``numpy`` driver runs them as Python with
-:func:`pfbench.backends.numpy_backend.weigh` and :mod:`pfbench.resampling`, the ``numba`` driver
-(:mod:`pfbench.backends.numba_mpf`) compiles them with the model's functions and uses
-:mod:`pfbench.backends.numba_weights` and the scheme's kernel of
+:func:`kalman_update`, :func:`mixture_moments`) with :func:`pfbench.backends.numpy_backend.weigh`
+and :mod:`pfbench.resampling`. The ``numba`` driver (:mod:`pfbench.backends.numba_mpf`) compiles
+their twins, the same operations on every scalar in the same order written as loops over the
+particles (which numba compiles several times faster than these array expressions), with the
+model's functions, :mod:`pfbench.backends.numba_weights` and the scheme's kernel of
 :mod:`pfbench.backends.numba_resampling`; with d_n = 0 it compiles only the Kalman recursion
 (``run_linear``: no sampling, conditioning or resampling code). Both draw from one
 ``numpy.random.default_rng(seed)`` in this order: the prior ``initial(rng, N_p, p)`` (only when
@@ -54,7 +55,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from numba.extending import register_jitable
 
 from .. import resampling as _resampling
 from ..backends.numpy_backend import _clean, weigh
@@ -69,7 +69,6 @@ _CL_FUNCTIONS = ("cl_transition", "cl_observation", "cl_noise", "cl_prior")
 
 
 # --------------------------------------------------------------------------- the step math
-@register_jitable
 def sandwich(A, P, Q):
     """Per particle: A P and A P A' + Q, for A (n, d_out, d_in), P (n, d_in, d_in), Q (d_out, d_out)."""
     n = P.shape[0]
@@ -89,7 +88,6 @@ def sandwich(A, P, Q):
     return AP, S
 
 
-@register_jitable
 def cholesky_batch(S):
     """Lower Cholesky factors of a batch of SPD matrices S (n, d, d) (pivots floored at 1e-300)."""
     d = S.shape[1]
@@ -107,7 +105,6 @@ def cholesky_batch(S):
     return L
 
 
-@register_jitable
 def condition_nonlinear(fn, An, m, P, z, Qn):
     """Step 1 and the first half of step 2 of the module docstring ([Schon2005] Alg. 1), for
     d_n > 0: sample x^n_t = f^n + A^n m + L z (L L' = N = A^n P A^n' + Q^n) and condition
@@ -151,7 +148,6 @@ def condition_nonlinear(fn, An, m, P, z, Qn):
     return xnew, mm, Pm
 
 
-@register_jitable(inline="always")
 def time_update(f, A, m, P, Q):
     """The linear-Gaussian time update (second half of step 2): m_pred = f + A m and
     P_pred = A P A' + Q per particle, for f (n, d_l), A (n, d_l, d_l), Q (d_l, d_l).
@@ -165,7 +161,6 @@ def time_update(f, A, m, P, Q):
     return m_pred, P_pred
 
 
-@register_jitable
 def kalman_predict(fn, An, fl, Al, m, P, z, Qn, Ql, T, corr):
     """Steps 1-2 of the module docstring ([Schon2005] Alg. 1): sample x^n_t and predict x^l_t.
 
@@ -198,7 +193,6 @@ def kalman_predict(fn, An, fl, Al, m, P, z, Qn, Ql, T, corr):
     return xnew, m_pred, P_pred
 
 
-@register_jitable
 def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet):
     """Step 4: log p(y_t | x^n_t, Y_{t-1}) per particle (n,) and the measurement update (m, P).
 
@@ -245,7 +239,6 @@ def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet):
     return ll, m, P
 
 
-@register_jitable
 def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, est, cov):
     """Full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x, n_x) of the MPF posterior
     sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, given the weighted means of x^n
