@@ -42,6 +42,27 @@ def test_kernel_parts_are_timed_and_reported(res):
     assert any(line.startswith("kernel parts") and "resampling + gather" in line for line in main_text(res))
 
 
+def test_float32_parts_are_measured_in_both_dtypes(res):
+    """The float32 account: every compared part timed in each dtype at the large N_p, and the printed
+    speed-ups are float64 / float32 of those parts. Catches parts timed in one dtype only (the
+    float32 harness silently running float64), a speed-up inverted, or medians not of the rounds."""
+    from pfbench.bench.passes import _COMPARED
+
+    dp = res["dtype_parts"]
+    big = res["summary"]["big_config"]["particles"]
+    assert [dp[dt]["dtype"] for dt in ("float64", "float32")] == ["float64", "float32"]
+    for dt in ("float64", "float32"):
+        assert dp[dt]["particles"] == big
+        for k, _ in _COMPARED:
+            assert math.isfinite(dp[dt][k]) and dp[dt][k] > 0, k
+    line = next(x for x in main_text(res) if x.startswith("float32 vs float64 kernel parts"))
+    a, b, r = dp["float64"], dp["float32"], dp["speedup"]
+    assert f"pass A {a['pass_a']:.1f} vs {b['pass_a']:.1f} ({r['pass_a']:.2f}x)" in line
+    for k, _ in _COMPARED:  # float64 / float32 within each round, not the other way round
+        assert r[k] == pytest.approx(paired_ratio(dp["rounds"]["float64"][k], dp["rounds"]["float32"][k]))
+        assert a[k] == pytest.approx(np.median(dp["rounds"]["float64"][k]))
+
+
 def test_ratios_are_computed_from_the_same_run(res):
     """Catches a ratio computed from the wrong pair of timings (or typed in)."""
     for r in res["rows"]:

@@ -41,20 +41,22 @@ loops are ``prange``): bit-identical results for any thread count.
 float32
 -------
 With float32 particles the noise is drawn as float32 (``standard_normal(..., dtype=float32)``, the
-float32 ziggurat, inlined like the float64 one) and the particle buffers are float32; the model
-functions see float64 tiles (the stored, rounded states) and their results are rounded to float32
-when stored; weights, log-likelihood sums and moments stay float64. Why not float32 arithmetic: the
-models are written with Python float literals (``0.5 * x``) and float64 parameters, which numba
-types as float64 whatever the array dtype (measured: ``float32 array * 0.5`` is a float64 array in
-numba, float32 in NumPy >= 2), so a float32 model evaluation would differ between the backends and
-gain nothing inside numba; computing in float64 and storing float32 keeps the backends in
-agreement. What float32 then buys is half the particle memory and a float32 draw, and what it
-costs is three float32 <-> float64 tile conversions per tile. Measured (Ob1 bootstrap, 1 thread,
-2-core AMD EPYC, medians): the two inlined draws cost the same (3.1 vs 3.3 ns per draw, float32
-vs float64), and the filter is slower in float32 at every size (N_p = 10^3: 28.1 vs 22.6 ns per
-particle-step; 10^5: 28.1 vs 22.7; 10^6: 33.4 vs 28.6): the step is bound by arithmetic and
-branches, not by memory (10^5 float64 particles are 0.8 MB, cache-resident; at 10^6 memory adds
-about 5 ns per particle-step in both dtypes), so halving storage cannot pay for the conversions
+float32 ziggurat, inlined like the float64 one, stored exactly in the float64 tile the model gets)
+and the particle buffers are float32; the model functions see float64 tiles (the stored, rounded
+states, converted into a buffer allocated once per pass) and their results are rounded to float32
+when stored, the rounded values kept in float64 for the log-likelihood in the same loop; weights,
+log-likelihood sums and moments stay float64. Why not float32 arithmetic: the models are written
+with Python float literals (``0.5 * x``) and float64 parameters, which numba types as float64
+whatever the array dtype (measured: ``float32 array * 0.5`` is a float64 array in numba, float32
+in NumPy >= 2), so a float32 model evaluation would differ between the backends and gain nothing
+inside numba; computing in float64 and storing float32 keeps the backends in agreement. What
+float32 then buys is half the particle memory and a float32 draw; what it costs is the tile
+conversions. Measured (``pfbench bench``'s float32 vs float64 kernel parts, Ob1 bootstrap, 1
+thread, N_p = 10^5, paired per round, 2-core AMD EPYC): draws 3.6 vs 3.7 ns (the ziggurat's
+table lookups and rejection test cost the same in both widths, and the 128-bit PCG64 step that
+float32 halves is not the bottleneck), tile in/out 0.5 vs 0.6, model 1.7 vs 1.7, whole filter
+22.1 vs 22.7 ns per particle-step (1.04x). The step is bound by arithmetic and branches, not by
+memory (10^5 float64 particles are 0.8 MB, cache-resident), so halving storage cannot pay more
 until the models are written dtype-generic (float32 literals), as the Cortex-M compiler already
 does for ``--precision float`` (:mod:`pfbench.mcu.modelcode`).
 """
@@ -97,13 +99,23 @@ def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by ke
     raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
 
 
-@_register_jitable
-def _normals(rng, k, n_noise, like):
-    """(k, n_noise) standard normals in the particle dtype (float32: NumPy's float32 ziggurat),
-    the numbers ``rng.standard_normal`` gives (:func:`pfbench.backends.pcg64.fill_normals`)."""
-    out = _np.empty((k, n_noise), like.dtype)
-    _pcg64.fill_normals(rng, out)
-    return out
+def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the overload below
+    return rng.standard_normal((k, n_noise), dtype=like.dtype).astype(_np.float64)
+
+
+@_overload(_normals)
+def _normals_impl(rng, k, n_noise, like):
+    """(k, n_noise) standard normals drawn in the particle dtype (float32: NumPy's float32
+    ziggurat), the numbers ``rng.standard_normal`` gives, as a float64 array for the model
+    (:func:`pfbench.backends.pcg64.fill_normals`; float32 draws are stored exactly in float64, so
+    there is no float32 array to convert)."""
+    fill = _pcg64.fill_normals_f32 if like.dtype == _numba.types.float32 else _pcg64.fill_normals
+
+    def impl(rng, k, n_noise, like):
+        out = _np.empty((k, n_noise))
+        fill(rng, out)
+        return out
+    return impl
 
 
 @_intrinsic
@@ -126,28 +138,91 @@ def _column_major(typingctx, a):
     return ret(a), codegen
 
 
-def _as64(a):  # pragma: no cover - compiled through the overload below
-    return a.astype(_np.float64)
+def _f_layout(a):  # pragma: no cover - compiled through the overload below
+    return a
 
 
-@_overload(_as64)
-def _as64_impl(a):
-    """``a`` as float64 (no copy when it already is): the models compute in float64."""
-    if a.dtype == _numba.types.float64:
-        return lambda a: a
-    return lambda a: a.astype(_np.float64)
+@_overload(_f_layout)
+def _f_layout_impl(a):
+    """A (tile, 1) tile typed column-major (:func:`_column_major`) whatever its type, so that every
+    call of the model's log-likelihood sees one array type (one compilation, vectorised)."""
+    if a.layout == "C":
+        return lambda a: _column_major(a)
+    return lambda a: a
 
 
-def _stored(xn, stored):  # pragma: no cover - compiled through the overload below
-    return stored.astype(_np.float64)
+def _tile_buffer(xs, k):  # pragma: no cover - compiled through the overload below
+    return _np.empty((min(k, _TILE), xs.shape[1]))
 
 
-@_overload(_stored)
-def _stored_impl(xn, stored):
-    """The states as stored (float32 particles: rounded), in float64, for the log-likelihood."""
-    if stored.dtype == _numba.types.float64:
-        return lambda xn, stored: xn
-    return lambda xn, stored: stored.astype(_np.float64)
+@_overload(_tile_buffer)
+def _tile_buffer_impl(xs, k):
+    """float32 particles: a float64 (tile, n_x) buffer for the tiles the model sees, allocated once
+    per pass. float64 particles need none (the model sees the particle buffer itself): ``xs``."""
+    if xs.dtype == _numba.types.float64:
+        return lambda xs, k: xs
+    return lambda xs, k: _np.empty((min(k, _TILE), xs.shape[1]))
+
+
+def _tile64(xs, s, e, buf):  # pragma: no cover - compiled through the overload below
+    return xs[s:e].astype(_np.float64)
+
+
+@_overload(_tile64)
+def _tile64_impl(xs, s, e, buf):
+    """The states of particles [s, e) as float64 for the model: a view of ``xs`` (float64), or
+    converted into ``buf`` (float32)."""
+    if xs.dtype == _numba.types.float64:
+        return lambda xs, s, e, buf: xs[s:e]
+
+    def impl(xs, s, e, buf):
+        k = (e - s) * xs.shape[1]
+        src = xs[s:e].reshape(k)  # one flat loop (vectorised), whatever n_x
+        dst = buf[:e - s].reshape(k)
+        for i in range(k):
+            dst[i] = src[i]
+        return buf[:e - s]
+    return impl
+
+
+def _store(xs, s, xn, buf):  # pragma: no cover - compiled through the overload below
+    xs[s:s + xn.shape[0]] = xn
+    return xs[s:s + xn.shape[0]].astype(_np.float64)
+
+
+@_overload(_store)
+def _store_impl(xs, s, xn, buf):
+    """Store the new states ``xn`` into particles [s, s + k) and return them as stored, in float64,
+    for the log-likelihood: ``xn`` itself (float64), or rounded to float32 and back into ``buf``."""
+    if xs.dtype == _numba.types.float64:
+        def impl(xs, s, xn, buf):
+            if xs.shape[1] == 1:  # no inner loop of one iteration
+                for i in range(xn.shape[0]):
+                    xs[s + i, 0] = xn[i, 0]
+            else:
+                for i in range(xn.shape[0]):
+                    for c in range(xs.shape[1]):
+                        xs[s + i, c] = xn[i, c]
+            return xn
+        return impl
+
+    def impl32(xs, s, xn, buf):
+        k = xn.shape[0]
+        dst = xs[s:s + k].reshape(k * xs.shape[1])
+        back = buf[:k].reshape(k * xs.shape[1])
+        if xs.shape[1] == 1:  # one flat loop (vectorised)
+            for i in range(k):
+                v = _np.float32(xn[i, 0])
+                dst[i] = v
+                back[i] = v
+        else:
+            for i in range(k):
+                for c in range(xs.shape[1]):
+                    v = _np.float32(xn[i, c])
+                    dst[i * xs.shape[1] + c] = v
+                    back[i * xs.shape[1] + c] = v
+        return buf[:k]
+    return impl32
 
 
 @_njit(nogil=True)
@@ -159,7 +234,8 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
     -log n (after resampling), so it is not read.
     """
     m = -_np.inf
-    n_x = xs.shape[1]
+    bin_ = _tile_buffer(xs, i1 - i0)  # float32: the model's input and the stored states, in float64
+    bout = _tile_buffer(xs, i1 - i0)
     for s in range(i0, i1, _TILE):
         e = min(s + _TILE, i1)
         k = e - s
@@ -169,21 +245,19 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
                 for c in range(n_noise):
                     noise[i, c] = 0.0
         else:
-            noise = _as64(_normals(brng, k, n_noise, xs))
+            noise = _normals(brng, k, n_noise, xs)
         if _F_TILES:  # a compile-time constant: numba prunes the other branch
-            xn = _transition(_column_major(_as64(xs[s:e])), ut, t, _column_major(noise), p)
+            xn = _transition(_column_major(_tile64(xs, s, e, bin_)), ut, t, _column_major(noise), p)
         else:
-            xn = _transition(_as64(xs[s:e]), ut, t, noise, p)
-        if not first:
-            if n_x == 1:  # no inner loop of one iteration
-                for i in range(k):
-                    xs[s + i, 0] = xn[i, 0]
-            else:
-                for i in range(k):
-                    for c in range(n_x):
-                        xs[s + i, c] = xn[i, c]
-            xn = _stored(xn, xs[s:e])
-        ll = _log_likelihood(yt, xn, ut, t, p)
+            xn = _transition(_tile64(xs, s, e, bin_), ut, t, noise, p)
+        # one call per branch, not a reassigned ``xn``: float32's stored states (a C buffer) and the
+        # model's column-major output would unify to an any-layout array, which nothing vectorises
+        if first:
+            ll = _log_likelihood(yt, xn, ut, t, p)
+        elif _F_TILES:
+            ll = _log_likelihood(yt, _f_layout(_store(xs, s, xn, bout)), ut, t, p)
+        else:
+            ll = _log_likelihood(yt, _store(xs, s, xn, bout), ut, t, p)
         if first or asir:
             for i in range(k):
                 j = s + i
@@ -249,8 +323,8 @@ def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
       vectoriser);
     * the running sum, the one strictly sequential chain (the cdf feeds the resampling, so it is
       the NumPy reference's ``cumsum`` order, one add after the other), with sum w^2 beside it;
-    * the moments (which feed nothing back), with four partial sums in registers
-      (:func:`_sums4`), one state component at a time: a sum accumulated in the ``bsx`` array
+    * the moments (which feed nothing back), both sums of a state component in one pass, with four
+      partial sums each in registers (:func:`_sums4`): a sum accumulated in the ``bsx`` array
       itself waits on a store and a reload every particle (measured on Ob1: the pass took 8.6 ns
       per particle-step that way, exp 2.4 ns of it).
     """
@@ -268,9 +342,7 @@ def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
     bs2[b] = s2 if mom else 0.0
     if mom:
         for c in range(n_x):
-            x0 = _np.float64(xs[0, c])
-            bsx[b, c] = _sums4(wu, xs[:, c], i0, i1, 0.0, False)
-            bsxx[b, c] = _sums4(wu, xs[:, c], i0, i1, x0, True)
+            bsx[b, c], bsxx[b, c] = _sums4(wu, xs[:, c], i0, i1, _np.float64(xs[0, c]))
     else:
         for c in range(n_x):
             bsx[b, c] = 0.0
@@ -278,37 +350,48 @@ def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
 
 
 @_register_jitable
-def _sums4(w, v, i0, i1, shift, square):
-    """sum over [i0, i1) of w_i d_i (``square``: w_i d_i^2), d_i = v_i - shift, with four partial
-    sums so the adds do not wait on each other (the order differs from a plain loop in the last
-    bits: the estimates, which feed nothing back)."""
+def _sums4(w, v, i0, i1, shift):
+    """(sum w_i v_i, sum w_i (v_i - shift)^2) over [i0, i1) in one pass over ``w`` and ``v``, each
+    with four partial sums so the adds do not wait on each other (the order differs from a plain
+    loop in the last bits: the estimates, which feed nothing back)."""
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
     s3 = 0.0
+    q0 = 0.0
+    q1 = 0.0
+    q2 = 0.0
+    q3 = 0.0
     i = i0
     while i + 4 <= i1:
-        d0 = _np.float64(v[i]) - shift
-        d1 = _np.float64(v[i + 1]) - shift
-        d2 = _np.float64(v[i + 2]) - shift
-        d3 = _np.float64(v[i + 3]) - shift
-        if square:
-            d0 *= d0
-            d1 *= d1
-            d2 *= d2
-            d3 *= d3
-        s0 += w[i] * d0
-        s1 += w[i + 1] * d1
-        s2 += w[i + 2] * d2
-        s3 += w[i + 3] * d3
+        v0 = _np.float64(v[i])
+        v1 = _np.float64(v[i + 1])
+        v2 = _np.float64(v[i + 2])
+        v3 = _np.float64(v[i + 3])
+        w0 = w[i]
+        w1 = w[i + 1]
+        w2 = w[i + 2]
+        w3 = w[i + 3]
+        s0 += w0 * v0
+        s1 += w1 * v1
+        s2 += w2 * v2
+        s3 += w3 * v3
+        d0 = v0 - shift
+        d1 = v1 - shift
+        d2 = v2 - shift
+        d3 = v3 - shift
+        q0 += w0 * (d0 * d0)
+        q1 += w1 * (d1 * d1)
+        q2 += w2 * (d2 * d2)
+        q3 += w3 * (d3 * d3)
         i += 4
     while i < i1:
-        d0 = _np.float64(v[i]) - shift
-        if square:
-            d0 *= d0
-        s0 += w[i] * d0
+        v0 = _np.float64(v[i])
+        d0 = v0 - shift
+        s0 += w[i] * v0
+        q0 += w[i] * (d0 * d0)
         i += 1
-    return (s0 + s1) + (s2 + s3)
+    return (s0 + s1) + (s2 + s3), (q0 + q1) + (q2 + q3)
 
 
 @_njit(nogil=True)

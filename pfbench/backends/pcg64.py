@@ -16,8 +16,9 @@ the state in registers:
   stores the state back, so any later draw, by numba or by NumPy, continues the same stream;
 * :func:`normals_into_f32` does the same for ``standard_normal(dtype=np.float32)`` (NumPy's float32
   ziggurat on 32-bit words, two per PCG64 step, the spare half buffered in the state struct);
-* :func:`fill_normals` and :func:`fill_uniforms` (``Generator.random``: NumPy's ``next_double``)
-  are what compiled code calls: the inlined draws, or numba's own where :func:`layout_ok` says no;
+* :func:`fill_normals`, :func:`fill_normals_f32` (float32 draws into a float32 or float64 array)
+  and :func:`fill_uniforms` (``Generator.random``: NumPy's ``next_double``) are what compiled code
+  calls: the inlined draws, or numba's own where :func:`layout_ok` says no;
 * :func:`layout_ok` checks once per process, from Python, that NumPy's PCG64 state struct is laid
   out as this module reads it (a pointer to two little-endian 128-bit integers, the build with a
   native 128-bit type); if not, the kernels keep numba's own draws (the same numbers, slower).
@@ -252,18 +253,37 @@ def fill_normals(gen, out):  # pragma: no cover - compiled through the overload 
     out[...] = gen.standard_normal(out.shape, dtype=out.dtype)
 
 
+def fill_normals_f32(gen, out):  # pragma: no cover - compiled through the overload below
+    """Fill ``out`` (float32 or float64, C order) with ``gen.standard_normal(out.shape,
+    dtype=np.float32)``: float32 draws, stored exactly in a float64 ``out`` too (a kernel that
+    computes in float64 gets its float32 noise without a float32 array and a conversion)."""
+    out[...] = gen.standard_normal(out.shape, dtype=np.float32)
+
+
+@overload(fill_normals_f32)
+def _fill_normals_f32_impl(gen, out):
+    """The inlined float32 draws where :func:`layout_ok`, else numba's own (same numbers)."""
+    if layout_ok():
+        return lambda gen, out: normals_into_f32(gen, out)
+
+    def library(gen, out):
+        flat = out.reshape(out.size)
+        flat[:] = gen.standard_normal(out.size, np.float32)
+    return library
+
+
 @overload(fill_normals)
 def _fill_normals_impl(gen, out):
     """The inlined draws where NumPy's state struct is laid out as this module reads it
     (:func:`layout_ok`, checked here at compile time), else numba's own draws (same numbers)."""
-    f32 = out.dtype == types.float32
+    if out.dtype == types.float32:
+        return lambda gen, out: fill_normals_f32(gen, out)
     if layout_ok():
-        return (lambda gen, out: normals_into_f32(gen, out)) if f32 else (lambda gen, out: normals_into(gen, out))
-    dt = np.float32 if f32 else np.float64
+        return lambda gen, out: normals_into(gen, out)
 
     def library(gen, out):
         flat = out.reshape(out.size)
-        flat[:] = gen.standard_normal(out.size, dt)
+        flat[:] = gen.standard_normal(out.size)
     return library
 
 

@@ -10,7 +10,8 @@ Sections (each writes its JSON into the directory of ``--out``, default ``result
     built for this host at -O3 -march=native, once with its own libc RNG and once with a fast RNG;
   - the irreducible-work floor (1 normal + 1 exp per particle-step) and its breakdown
     (:mod:`pfbench.bench.floor`), and each part of the particle kernel timed alone
-    (:mod:`pfbench.bench.passes`);
+    (:mod:`pfbench.bench.passes`), once more in float32 and float64 at the large N_p (where the
+    float32 target is judged: the measured account of what float32 gains and what it pays);
   - numba on all cores vs 1 thread at N_p = 10^5 and 10^6;
   - MultiPDF ([MultiPDF] Alg. 2), N_f = 2: 1 thread vs all cores;
   - the PMSM SMC step with the optimal proposal ([Thesis] §4.2.1, 60 particles) against the
@@ -66,7 +67,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     model = models.get("ob1")
     configs = QUICK_CONFIGS if quick else CONFIGS
     thread_cfgs = QUICK_THREAD_CONFIGS if quick else THREAD_CONFIGS
-    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1 + 1
+    n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1 + 1 + 1
     bar = tqdm(total=n_jobs, desc="bench", disable=not progress, file=sys.stderr, leave=False)
     rows, floors, c_rows = [], [], []
     c_note = None if with_c else "not run: --no-c"
@@ -135,9 +136,12 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     paired = paired_rounds(model, key, big, thread_cfgs, max(5, repeats), c_note is None and bool(c_rows))
     bar.update()
     bar.set_postfix_str("kernel parts")
-    from .passes import passes_ns
+    from .passes import dtype_parts, passes_ns
 
     parts = passes_ns(key[1], key[0], max(3, repeats))
+    bar.update()
+    bar.set_postfix_str(f"kernel parts float32 vs float64 N_p={big[1]}")
+    dparts = dtype_parts(big[1], big[0], max(3, repeats))
     bar.update()
     bar.set_postfix_str("particles library")
     part = particles_ns(key[0], key[1], max(1, repeats // 2)) if with_particles else None
@@ -147,7 +151,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     s, targets = summarize(rows, floors, c_rows, threads, part, key, big, paired)
     return provenance(kind="bench", repeats=repeats, quick=quick, rows=rows, floors=floors, c_rows=c_rows,
                       c_note=c_note, threads=threads, multipdf=multipdf, pmsm_smc=pmsm, kernel_parts=parts,
-                      particles_library=part, paired=paired, summary=s, targets=targets)
+                      dtype_parts=dparts, particles_library=part, paired=paired, summary=s, targets=targets)
 
 
 def paired_rounds(model, key, big, thread_cfgs, rounds: int, with_c: bool) -> dict:
@@ -312,6 +316,10 @@ def main_text(res: dict) -> list[str]:
         from .passes import passes_text
 
         out.append(passes_text(res["kernel_parts"]))
+    if res.get("dtype_parts"):
+        from .passes import dtype_text
+
+        out.append(dtype_text(res["dtype_parts"]))
     out.extend(fmt(t) for t in res["targets"])
     return out
 

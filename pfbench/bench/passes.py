@@ -16,17 +16,27 @@ Parts (ns per particle-step, single thread, median of repeats), in the kernel's 
 * ``pass_b``: the whole fused pass B (exp + running sum + moments + sum of squared weights);
 * ``resample``: systematic resampling + gather into the second buffer, on the cdf of the run's
   own weights at every step (Ob1's weights are very uneven, which is what makes a merge slow);
+* ``convert``: pass A's tile traffic around the model: the states handed to the model (float32
+  particles: converted to float64 into a buffer; float64: a view) and the new states stored
+  (float32: rounded, and the rounded values kept in float64 for the likelihood);
 * ``filter``: the whole filter, for comparison (the parts sum to about this).
+
+With ``dtype="float32"`` every part runs as the float32 kernel runs it (float32 draws and particle
+buffers, the model in float64 on converted tiles), so the two dtypes' parts side by side say where
+float32 gains and where it pays (:func:`dtype_text`).
 
 The harnesses compile with plain ``numba.njit`` (not cached): a few seconds per process.
 """
 from __future__ import annotations
 
+import itertools
 import statistics
 import time
 
 import numba.extending
 import numpy as np
+
+from .timing import interleaved, paired_ratio
 
 
 @numba.extending.register_jitable
@@ -40,10 +50,10 @@ def _harnesses(mod):
     tile = mod._TILE
     draw = mod._normals
     tiles = mod._column_major if mod._F_TILES else _as_is
+    tile64, store, tile_buffer = mod._tile64, mod._store, mod._tile_buffer
 
     @numba.njit
-    def normals(rng, n, m):
-        like = np.empty((1, 1))
+    def normals(rng, n, m, like):
         acc = 0.0
         for _ in range(m):
             for s in range(0, n, tile):
@@ -74,6 +84,19 @@ def _harnesses(mod):
         return run
 
     transition_c, transition_f = transition_on(_as_is), transition_on(mod._column_major)
+
+    @numba.njit
+    def convert(xs, m):
+        acc = 0.0
+        n = xs.shape[0]
+        bin_, bout = tile_buffer(xs, n), tile_buffer(xs, n)
+        for _ in range(m):
+            for s in range(0, n, tile):
+                e = min(s + tile, n)
+                a = tile64(xs, s, e, bin_)  # as pass A does (storing back the values it read)
+                c = store(xs, s, a, bout)
+                acc += c[0, 0]
+        return acc
 
     @numba.njit
     def whole_a(p, rng, y, x, m, la, lam):
@@ -114,21 +137,22 @@ def _harnesses(mod):
             merge(cdfs[t], n, rng.random(), ub, False, 0, n, x, dst, lam, lam, False, anc, pos, kk)
         return dst[0, 0]
 
-    return normals, model, transition_c, transition_f, whole_a, exps, whole_b, resample
+    return normals, model, transition_c, transition_f, convert, whole_a, exps, whole_b, resample
 
 
-def _median_ns(fn, args, n: int, m: int, repeats: int) -> float:
+def _timer(fn, args, n: int, m: int):
+    """A callable timing one run of ``fn(*args)`` in ns per particle-step (``fn`` compiled first)."""
     fn(*args)  # compile
-    times = []
-    for _ in range(repeats):
+
+    def once():
         t0 = time.perf_counter()
         fn(*args)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times) * 1e9 / (n * m)
+        return (time.perf_counter() - t0) * 1e9 / (n * m)
+    return once
 
 
-def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5) -> dict:
-    """ns per particle-step of each part of the Ob1 bootstrap step (see the module docstring)."""
+def _part_timers(n: int, m: int, dtype: str) -> dict:
+    """Part name -> timer of one run, for the Ob1 bootstrap step with ``dtype`` particles."""
     from .. import models
     from ..backends import numba_backend
     from ..filters import run_filter
@@ -137,28 +161,55 @@ def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5) -> dict:
     traj = model.simulate(m, seed=1)
     p = model.params()
     mod = numba_backend.kernel_module(model, "particle", "systematic")
-    normals, model_fn, transition_c, transition_f, whole_a, exps, whole_b, resample = _harnesses(mod)
+    normals, model_fn, transition_c, transition_f, convert, whole_a, exps, whole_b, resample = _harnesses(mod)
     run = run_filter(model, traj.y, None, method="bootstrap", n_particles=n, seed=0, n_threads=1,
-                     store_particles=True)
+                     store_particles=True, dtype=dtype)
     weights = run.extras["weights"][0]
     cdfs = np.cumsum(weights, axis=1)
-    x = np.ascontiguousarray(run.extras["particles"][0, m // 2])
+    x = np.ascontiguousarray(run.extras["particles"][0, m // 2], dtype=dtype)
+    x64 = x.astype(np.float64)  # what the model sees
     la = np.log(np.maximum(weights[m // 2], 1e-300)) - np.log(weights[m // 2].max())
     rng = np.random.default_rng(0)
-    noise = rng.standard_normal((n, 1))
-    out = {"steps": m, "particles": n,
-           "normals": _median_ns(normals, (rng, n, m), n, m, repeats),
-           "model": _median_ns(model_fn, (p, traj.y, x, noise, m), n, m, repeats),
-           "transition_c": _median_ns(transition_c, (p, x, noise, m), n, m, repeats),
-           "transition_f": _median_ns(transition_f, (p, x, noise, m), n, m, repeats),
-           "pass_a": _median_ns(whole_a, (p, rng, traj.y, x.copy(), m, np.empty(n), np.zeros(n)), n, m, repeats),
-           "exp": _median_ns(exps, (la, m), n, m, repeats),
-           "pass_b": _median_ns(whole_b, (la, x, m), n, m, repeats),
-           "resample": _median_ns(resample, (cdfs, x, rng), n, m, repeats)}
-    times = [run_filter(model, traj.y, None, method="bootstrap", n_particles=n, seed=s, n_threads=1).elapsed_s
-             for s in range(repeats)]
-    out["filter"] = statistics.median(times) * 1e9 / (n * m)
+    noise64 = rng.standard_normal((n, 1), dtype=dtype).astype(np.float64)  # as the model gets it
+    seeds = itertools.count()
+
+    def whole_filter():
+        return run_filter(model, traj.y, None, method="bootstrap", n_particles=n, seed=next(seeds), n_threads=1,
+                          dtype=dtype).elapsed_s * 1e9 / (n * m)
+    return {"normals": _timer(normals, (rng, n, m, x[:1]), n, m),
+            "model": _timer(model_fn, (p, traj.y, x64, noise64, m), n, m),
+            "transition_c": _timer(transition_c, (p, x64, noise64, m), n, m),
+            "transition_f": _timer(transition_f, (p, x64, noise64, m), n, m),
+            "convert": _timer(convert, (x.copy(), m), n, m),
+            "pass_a": _timer(whole_a, (p, rng, traj.y, x.copy(), m, np.empty(n), np.zeros(n)), n, m),
+            "exp": _timer(exps, (la, m), n, m),
+            "pass_b": _timer(whole_b, (la, x, m), n, m),
+            "resample": _timer(resample, (cdfs, x, rng), n, m),
+            "filter": whole_filter}
+
+
+def _parts(timings: dict, n: int, m: int, dtype: str) -> dict:
+    out = {"steps": m, "particles": n, "dtype": dtype, **{k: statistics.median(v) for k, v in timings.items()}}
     out["rest"] = out["filter"] - out["pass_a"] - out["pass_b"] - out["resample"]
+    return out
+
+
+def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5, dtype: str = "float64") -> dict:
+    """ns per particle-step of each part of the Ob1 bootstrap step with ``dtype`` particles (see
+    the module docstring): medians of ``repeats`` rounds, each timing every part once."""
+    return _parts(interleaved(_part_timers(n, m, dtype), repeats), n, m, dtype)
+
+
+def dtype_parts(n: int, m: int, repeats: int = 5) -> dict:
+    """The parts in float64 and in float32, timed in the same interleaved rounds (every part of both
+    dtypes once per round), and each part's float32 speed-up as the median of its per-round
+    float64 / float32 ratios (a change of the machine's speed between rounds cancels)."""
+    timers = {(dt, k): f for dt in ("float64", "float32") for k, f in _part_timers(n, m, dt).items()}
+    rounds = interleaved(timers, repeats)
+    by_dtype = {dt: {k: v for (d, k), v in rounds.items() if d == dt} for dt in ("float64", "float32")}
+    out = {dt: _parts(by_dtype[dt], n, m, dt) for dt in by_dtype}
+    out["speedup"] = {k: paired_ratio(rounds[("float64", k)], rounds[("float32", k)]) for _, k in timers}
+    out["rounds"] = by_dtype
     return out
 
 
@@ -170,3 +221,20 @@ def passes_text(d: dict) -> str:
             f"{d['rest']:.1f}); the model's transition alone on (tile, 1) arrays: {d['transition_c']:.1f} "
             f"typed row-major, {d['transition_f']:.1f} typed column-major as the kernel passes them (numba "
             f"vectorises no array expression over a trailing axis of length 1)")
+
+
+#: the parts :func:`dtype_text` compares, with their printed names
+_COMPARED = (("normals", "normal draws"), ("convert", "tile in/out (float32: conversions)"), ("model", "model"),
+             ("pass_a", "pass A"), ("pass_b", "pass B"), ("resample", "resampling + gather"),
+             ("filter", "whole filter"))
+
+
+def dtype_text(parts: dict) -> str:
+    """The float32 and float64 kernel parts side by side (``parts``: :func:`dtype_parts`), with the
+    float32 speed-up of each (paired per round): where float32 gains and where it pays."""
+    a, b, r = parts["float64"], parts["float32"], parts["speedup"]
+    cells = ", ".join(f"{name} {a[k]:.1f} vs {b[k]:.1f} ({r[k]:.2f}x)" for k, name in _COMPARED)
+    return (f"float32 vs float64 kernel parts (numba 1 thread, M={a['steps']}, N_p={a['particles']}; median ns "
+            f"per particle-step float64 vs float32, float32 speed-up paired per round): {cells}. The models compute in float64 "
+            "(Python float literals and float64 parameters), so float32 particles are converted per tile; "
+            "the draws are scalar ziggurat code whose cost does not halve with the width")

@@ -78,22 +78,47 @@ def test_float32_normals_are_numpys_and_the_half_word_buffer_carries_over(seed):
     assert a.standard_normal() == b.standard_normal()
 
 
-@pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_fill_normals_falls_back_to_numbas_draws_with_the_same_numbers(monkeypatch, dtype):
-    """Where NumPy's state struct is not laid out as read, ``fill_normals`` must not read it: it
-    falls back to the Generator's own draws (the same numbers). The fallback is taken from the
-    overload and run as plain Python. Catches a fallback that still reads the struct, or one that
-    draws another shape or dtype."""
+@pytest.mark.parametrize("name, dtype, draw", [("fill_normals", np.float64, np.float64),
+                                               ("fill_normals", np.float32, np.float32),
+                                               ("fill_normals_f32", np.float32, np.float32),
+                                               ("fill_normals_f32", np.float64, np.float32)])
+def test_fill_normals_falls_back_to_numbas_draws_with_the_same_numbers(monkeypatch, name, dtype, draw):
+    """Where NumPy's state struct is not laid out as read, ``fill_normals`` and ``fill_normals_f32``
+    must not read it: they fall back to the Generator's own draws (the same numbers). The fallback
+    is taken from the overload and run as plain Python (a float32 ``fill_normals`` goes through
+    ``fill_normals_f32``, whose fallback is then taken the same way). Catches a fallback that
+    still reads the struct, or one that draws another shape or dtype."""
     monkeypatch.setattr(pcg64, "layout_ok", lambda: False)
     out = np.empty((7, 3), dtype)
-    impl = pcg64._fill_normals_impl(numba.typeof(np.random.default_rng(0)), numba.typeof(out))
-    assert "normals_into" not in impl.__code__.co_names
+    gen_t = numba.typeof(np.random.default_rng(0))
+    if name == "fill_normals" and dtype == np.float32:
+        assert pcg64._fill_normals_impl(gen_t, numba.typeof(out)).__code__.co_names == ("fill_normals_f32",)
+        name = "fill_normals_f32"
+    impl = getattr(pcg64, f"_{name}_impl")(gen_t, numba.typeof(out))
+    assert "normals_into" not in impl.__code__.co_names and "normals_into_f32" not in impl.__code__.co_names
     impl(np.random.default_rng(5), out)
-    assert np.array_equal(out, np.random.default_rng(5).standard_normal((7, 3), dtype=dtype))
+    assert np.array_equal(out, np.random.default_rng(5).standard_normal((7, 3), dtype=draw))
     monkeypatch.undo()
     out2 = np.empty((7, 3), dtype)
-    _fill_via(np.random.default_rng(5), out2)
+    (_fill_via if draw == dtype else _fill_f32_via)(np.random.default_rng(5), out2)
     assert np.array_equal(out2, out)
+
+
+@numba.njit
+def _fill_f32_via(rng, out):
+    pcg64.fill_normals_f32(rng, out)
+
+
+def test_float32_draws_into_float64_are_the_float32_numbers_and_the_stream_continues():
+    """``fill_normals_f32`` on a float64 array stores NumPy's float32 draws exactly, and leaves the
+    generator (and its buffered 32-bit half) where NumPy's own draw would. Catches float64 draws
+    (another ziggurat), a lost spare half, or a state not stored back."""
+    a, b = np.random.default_rng(11), np.random.default_rng(11)
+    out = np.empty((9, 1))
+    _fill_f32_via(a, out)
+    assert np.array_equal(out, b.standard_normal((9, 1), dtype=np.float32).astype(np.float64))
+    assert a.standard_normal(dtype=np.float32) == b.standard_normal(dtype=np.float32)
+    assert a.standard_normal() == b.standard_normal()
 
 
 @numba.njit
