@@ -138,19 +138,6 @@ def _column_major(typingctx, a):
     return ret(a), codegen
 
 
-def _f_layout(a):  # pragma: no cover - compiled through the overload below
-    return a
-
-
-@_overload(_f_layout)
-def _f_layout_impl(a):
-    """A (tile, 1) tile typed column-major (:func:`_column_major`) whatever its type, so that every
-    call of the model's log-likelihood sees one array type (one compilation, vectorised)."""
-    if a.layout == "C":
-        return lambda a: _column_major(a)
-    return lambda a: a
-
-
 def _tile_buffer(xs, k):  # pragma: no cover - compiled through the overload below
     return _np.empty((min(k, _TILE), xs.shape[1]))
 
@@ -185,6 +172,19 @@ def _tile64_impl(xs, s, e, buf):
     return impl
 
 
+def _typed_as_tiles(a):  # pragma: no cover - compiled through the overload below
+    return a
+
+
+@_overload(_typed_as_tiles)
+def _typed_as_tiles_impl(a):
+    """A C-contiguous float32-path buffer typed as the kernel types its tiles: column-major
+    (:func:`_column_major`) when ``_F_TILES``, so the model sees one array type."""
+    if _F_TILES:
+        return lambda a: _column_major(a)
+    return lambda a: a
+
+
 def _store(xs, s, xn, buf):  # pragma: no cover - compiled through the overload below
     xs[s:s + xn.shape[0]] = xn
     return xs[s:s + xn.shape[0]].astype(_np.float64)
@@ -193,7 +193,8 @@ def _store(xs, s, xn, buf):  # pragma: no cover - compiled through the overload 
 @_overload(_store)
 def _store_impl(xs, s, xn, buf):
     """Store the new states ``xn`` into particles [s, s + k) and return them as stored, in float64,
-    for the log-likelihood: ``xn`` itself (float64), or rounded to float32 and back into ``buf``."""
+    for the log-likelihood: ``xn`` itself (float64), or rounded to float32 and back into ``buf``
+    (typed as the tiles, so it has the type :func:`_unstored` gives: one likelihood call site)."""
     if xs.dtype == _numba.types.float64:
         def impl(xs, s, xn, buf):
             if xs.shape[1] == 1:  # no inner loop of one iteration
@@ -221,7 +222,27 @@ def _store_impl(xs, s, xn, buf):
                     v = _np.float32(xn[i, c])
                     dst[i * xs.shape[1] + c] = v
                     back[i * xs.shape[1] + c] = v
-        return buf[:k]
+        return _typed_as_tiles(buf[:k])
+    return impl32
+
+
+def _unstored(xs, xn, buf):  # pragma: no cover - compiled through the overload below
+    return xn
+
+
+@_overload(_unstored)
+def _unstored_impl(xs, xn, buf):
+    """ASIR's first stage: the new states, not stored, for the log-likelihood, with the type
+    :func:`_store` returns: ``xn`` (float64 particles), or copied unrounded into ``buf`` (float32)."""
+    if xs.dtype == _numba.types.float64:
+        return lambda xs, xn, buf: xn
+
+    def impl32(xs, xn, buf):
+        k = xn.shape[0]
+        for i in range(k):
+            for c in range(xn.shape[1]):
+                buf[i, c] = xn[i, c]
+        return _typed_as_tiles(buf[:k])
     return impl32
 
 
@@ -250,14 +271,14 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
             xn = _transition(_column_major(_tile64(xs, s, e, bin_)), ut, t, _column_major(noise), p)
         else:
             xn = _transition(_tile64(xs, s, e, bin_), ut, t, noise, p)
-        # one call per branch, not a reassigned ``xn``: float32's stored states (a C buffer) and the
-        # model's column-major output would unify to an any-layout array, which nothing vectorises
+        # one type in both branches (a float32 buffer typed as the tiles), so one likelihood call
+        # site: a reassigned ``xn`` would unify the model's output and the buffer to an any-layout
+        # array, which nothing vectorises, and every call site is another inlined copy to compile
         if first:
-            ll = _log_likelihood(yt, xn, ut, t, p)
-        elif _F_TILES:
-            ll = _log_likelihood(yt, _f_layout(_store(xs, s, xn, bout)), ut, t, p)
+            xl = _unstored(xs, xn, bout)
         else:
-            ll = _log_likelihood(yt, _store(xs, s, xn, bout), ut, t, p)
+            xl = _store(xs, s, xn, bout)
+        ll = _log_likelihood(yt, xl, ut, t, p)
         if first or asir:
             for i in range(k):
                 j = s + i
