@@ -29,6 +29,7 @@ The harnesses compile with plain ``numba.njit`` (not cached): a few seconds per 
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import statistics
 import time
@@ -44,7 +45,10 @@ def _as_is(a):
     return a
 
 
+@functools.lru_cache(maxsize=None)
 def _harnesses(mod):
+    """The timing harnesses around kernel module ``mod``'s parts (one set per module, so every
+    configuration and dtype of a process reuses their compilations)."""
     pass_a, pass_b, merge = mod._pass_a, mod._pass_b, mod._merge_gather
     transition, log_likelihood = mod._transition, mod._log_likelihood
     tile = mod._TILE
