@@ -30,9 +30,9 @@ import numpy as _np
 
 from pfbench.backends.cache import njit as _njit
 from pfbench.backends.numba_weights import moments as _moments
+from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.backends.numba_weights import weigh as _weigh
-
-_LOG2PI = 1.8378770664093453
+from pfbench.models.base import LOG_2PI as _LOG2PI
 
 
 def _initial(rng, n, p):  # pragma: no cover - bound per model in the generated module
@@ -384,8 +384,8 @@ def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, es
         _time_update(fl, Al, m, P, Ql, AP, m_pred, P_pred)
         h, C = _cl_observation(xn, m_pred, ut, t, p)
         _kalman_update(h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet, h0, H, PH, ll, m, P)
-        v = ll[0]
-        deg = not (v > -_np.inf) or v == _np.inf  # NaN, +inf: zero likelihood, as weigh
+        v = _valid(ll[0])
+        deg = not (v > -_np.inf)
         degen[t] = deg
         inc[t] = -_np.inf if deg else v
         ess[t] = 1.0

@@ -72,6 +72,7 @@ from pfbench.backends import pcg64 as _pcg64
 from pfbench.backends.cache import njit as _njit
 from pfbench.backends.fastexp import exp_scalar as _exp
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
+from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.filters.methods import Method as _Method
 
 _ASIR = int(_Method.ASIR)
@@ -282,24 +283,18 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
         if first or asir:
             for i in range(k):
                 j = s + i
-                v = _np.float64(ll[i])
-                if not (v == v) or v == _np.inf:
-                    v = -_np.inf
-                elif asir:
-                    v = v - lam[j]
-                    if not (v == v) or v == _np.inf:
-                        v = -_np.inf
+                v = _valid(_np.float64(ll[i]))
+                if asir and v > -_np.inf:
+                    v = _valid(v - lam[j])
                 if first:
                     lam_out[j] = v
                 la[j] = mlogn + v if flat else lw[j] + v
         elif flat:  # the bootstrap step: branch-free loops that vectorise
             for i in range(k):
-                v = _np.float64(ll[i])
-                la[s + i] = mlogn + (v if v < _np.inf else -_np.inf)  # NaN and +inf -> -inf
+                la[s + i] = mlogn + _valid(_np.float64(ll[i]))
         else:
             for i in range(k):
-                v = _np.float64(ll[i])
-                la[s + i] = lw[s + i] + (v if v < _np.inf else -_np.inf)
+                la[s + i] = lw[s + i] + _valid(_np.float64(ll[i]))
         m = _max(la, s, e, m)
     return m
 

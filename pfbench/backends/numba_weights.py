@@ -7,8 +7,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from numba.extending import register_jitable
+
 from .cache import njit
 from .fastexp import exp_scalar
+
+
+@register_jitable
+def valid_log_likelihood(v):
+    """``v``, or -inf (zero likelihood) where it is NaN or +inf: the rule every numba kernel applies
+    to a log-likelihood (branch-free, so the loops that call it still vectorise)."""
+    return v if v < np.inf else -np.inf
 
 
 @njit(nogil=True, error_model="numpy")
@@ -25,10 +34,8 @@ def weigh(lw, ll, wu, cdf):
     n = lw.shape[0]
     m = -np.inf
     for i in range(n):
-        v = ll[i]
-        if not (v == v) or v == np.inf:
-            v = -np.inf
-            ll[i] = v
+        v = valid_log_likelihood(ll[i])
+        ll[i] = v
         a = lw[i] + v
         wu[i] = a
         if a > m:

@@ -59,12 +59,11 @@ import numpy as np
 from .. import resampling as _resampling
 from ..backends.numpy_backend import _clean, weigh
 from ..errors import InputError, UnsupportedError
-from ..models.base import StateSpaceModel
+from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
 from ..resampling import Scheme
 from .inputs import check_backend, check_dtype, check_inputs, seed_sequence
 from .result import FilterResult
 
-_LOG2PI = 1.8378770664093453
 _CL_FUNCTIONS = ("cl_transition", "cl_observation", "cl_noise", "cl_prior")
 
 
@@ -228,7 +227,7 @@ def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet):
                 PH[:, a] += P[:, a, b] * H[:, k, b]
         for a in range(d_l):
             s += H[:, k, a] * PH[:, a]
-        ll += -0.5 * (r * r / s + np.log(s)) - 0.5 * 1.8378770664093453
+        ll += -0.5 * (r * r / s + np.log(s)) - 0.5 * _LOG2PI
         for a in range(d_l):
             K = PH[:, a] / s
             m[:, a] += K * r
