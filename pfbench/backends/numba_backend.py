@@ -9,7 +9,9 @@ directory, with the model's njit-compiled functions bound to those globals at it
     <the family's kernel module source>
     <footer: bind the model's compiled functions to the kernel's globals>
 
-and import it. Its kernels are ordinary module-level cached functions, so a second process loads
+and import it (a scheme's module also binds the family's scheme-free functions, :data:`SCHEME_FREE`,
+to those of the model's any-scheme module, so they are compiled once per model). Its kernels are
+ordinary module-level cached functions, so a second process loads
 machine code from disk instead of recompiling. The file name carries a hash of the whole pfbench
 package, the model's module source and the numba/NumPy versions, so editing anything gives a
 new module and a fresh compile, never a stale kernel (see :mod:`pfbench.backends.cache`).
@@ -44,6 +46,11 @@ _HERE = Path(__file__).resolve().parent
 FAMILIES: dict[str, tuple[str, tuple[str, ...]]] = {
     "particle": ("numba_particle.py", ("transition", "log_likelihood")),
 }
+#: family -> its module's functions that depend on the model but not on the resampling scheme: the
+#: module of a scheme takes them from the model's any-scheme module (``scheme=None``), so all the
+#: schemes of a model share one compilation of them (the particle kernel's pass A, the draws and the
+#: model inlined, is about 40 % of its cold compile)
+SCHEME_FREE: dict[str, tuple[str, ...]] = {"particle": ("_pass_a",)}
 _LOCK = threading.RLock()
 _MODULES: dict[tuple[str, type, str, bool], object] = {}
 _FUNCS: dict[tuple[type, str], object] = {}
@@ -83,6 +90,11 @@ def model_function(module: str, qualname: str, name: str):
         return _FUNCS[key]
 
 
+def scheme_free_function(family: str, module: str, qualname: str, f_tiles: bool, name: str):
+    """Function ``name`` of the any-scheme kernel module of a model class (:data:`SCHEME_FREE`)."""
+    return getattr(kernel_module(_model_class(module, qualname), family, None, f_tiles=f_tiles), name)
+
+
 def disk_cacheable(cls: type) -> bool:
     """Whether numba can reload this model's compiled code in a later process.
 
@@ -117,12 +129,15 @@ def _source_fingerprint(cls: type, family: str) -> bytes:
     return hashlib.sha256(b"\0".join(parts)).digest()
 
 
-def kernel_module(model_or_cls, family: str = "particle", scheme=None):
+def kernel_module(model_or_cls, family: str = "particle", scheme=None, *, f_tiles: bool | None = None):
     """The generated kernel module of a model (class or instance) for a filter family.
 
     ``scheme`` (a :class:`~pfbench.resampling.Scheme`, its name or code) binds the kernel's
-    ``_resample`` to that scheme's kernel only, so the module compiles no other scheme; None binds
-    :func:`~pfbench.backends.numba_resampling.any_scheme` (the scheme chosen at run time).
+    ``_resample`` to that scheme's kernel only, so the module compiles no other scheme, and binds
+    the family's :data:`SCHEME_FREE` functions to those of the model's module with ``scheme=None``,
+    which binds :func:`~pfbench.backends.numba_resampling.any_scheme` (the scheme chosen at run
+    time). ``f_tiles``: whether the particle kernel hands the model column-major tiles (default:
+    :func:`column_major_tiles` of ``model_or_cls``).
     """
     from ..resampling import Scheme
     from .numba_resampling import kernel_name
@@ -130,7 +145,9 @@ def kernel_module(model_or_cls, family: str = "particle", scheme=None):
     cls = model_or_cls if isinstance(model_or_cls, type) else type(model_or_cls)
     filename, functions = FAMILIES[family]
     resampler = kernel_name(scheme)
-    f_tiles = family == "particle" and column_major_tiles(model_or_cls)
+    if f_tiles is None:
+        f_tiles = column_major_tiles(model_or_cls)
+    f_tiles = family == "particle" and bool(f_tiles)
     key = (family, cls, resampler, f_tiles)
     with _LOCK:
         if key in _MODULES:
@@ -149,6 +166,11 @@ def kernel_module(model_or_cls, family: str = "particle", scheme=None):
         footer += f"from pfbench.backends.numba_resampling import {resampler} as _resample\n"
         footer += f"_SCHEME = {-1 if scheme is None else int(Scheme.parse(scheme) if isinstance(scheme, str) else scheme)}\n"
         footer += f"_F_TILES = {f_tiles}\n"
+        shared = SCHEME_FREE.get(family, ()) if scheme is not None else ()
+        if shared:
+            footer += "from pfbench.backends.numba_backend import scheme_free_function as _scheme_free\n"
+        for fn in shared:
+            footer += f"{fn} = _scheme_free({family!r}, {cls.__module__!r}, {cls.__qualname__!r}, {f_tiles}, {fn!r})\n"
         text = body + footer
         if not disk_cacheable(cls):
             text = text.replace("_njit(nogil=True", "_njit(cache=False, nogil=True")

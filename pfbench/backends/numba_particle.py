@@ -18,10 +18,18 @@ A. draw noise + propagate + log-likelihood + a = lw + ll + running max, in tiles
    running maxima (:func:`_max`);
 B. w = exp(a - max) (a vectorised loop of its own), the running sum (the cdf), then
    weighted sums for the mean, the shifted second moment (shift: the filter's particle 0, so the
-   one-pass variance does not cancel) and sum w^2 (N_eff), with partial sums in registers;
+   one-pass variance does not cancel) and sum w^2 (N_eff), with partial sums in registers
+   (:func:`pfbench.backends.numba_weights.block_weights`);
 C. resampling: systematic and stratified as a merge that writes the resampled particles straight
-   into the second particle buffer (the buffers swap; no index array, no copy back); multinomial and
-   residual draw indices (``_resample``) and gather.
+   into the second particle buffer (the buffers swap; no index array, no copy back;
+   :func:`pfbench.backends.numba_resampling.merge_gather`); multinomial and residual draw indices
+   (``_resample``) and gather.
+
+What is compiled where. Passes B and C do not call the model: they live in ordinary cached modules
+and are compiled once per process (and loaded from disk after that) for every model and scheme.
+Pass A inlines the model; it does not depend on the scheme, so a scheme's module binds the
+``_pass_a`` of the model's any-scheme module (``SCHEME_FREE`` in
+:mod:`pfbench.backends.numba_backend`), and the schemes of a model share one compilation of it.
 
 Stream blocks and threads
 -------------------------
@@ -70,8 +78,10 @@ from numba.core.imputils import impl_ret_borrowed as _impl_ret_borrowed
 
 from pfbench.backends import pcg64 as _pcg64
 from pfbench.backends.cache import njit as _njit
-from pfbench.backends.fastexp import exp_scalar as _exp
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
+from pfbench.backends.numba_resampling import gather as _gather
+from pfbench.backends.numba_resampling import merge_gather as _merge_gather
+from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.filters.methods import Method as _Method
 
@@ -325,165 +335,6 @@ def _max(a, i0, i1, m):
     m0 = m1 if m1 > m0 else m0
     m2 = m3 if m3 > m2 else m2
     return m2 if m2 > m0 else m0
-
-
-@_njit(nogil=True, error_model="numpy")
-def _pass_b(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
-    """Pass B on [i0, i1): w = exp(a - m), block running sum (cdf), and, when ``mom``, the block's
-    sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
-
-    Three kinds of loop over the block, each as fast as its dependences allow:
-
-    * the exponentials, a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
-      LLVM vectorises; ``error_model="numpy"``: numba's zero-division check would stop the
-      vectoriser);
-    * the running sum, the one strictly sequential chain (the cdf feeds the resampling, so it is
-      the NumPy reference's ``cumsum`` order, one add after the other), with sum w^2 beside it;
-    * the moments (which feed nothing back), both sums of a state component in one pass, with four
-      partial sums each in registers (:func:`_sums4`): a sum accumulated in the ``bsx`` array
-      itself waits on a store and a reload every particle (measured on Ob1: the pass took 8.6 ns
-      per particle-step that way, exp 2.4 ns of it).
-    """
-    n_x = xs.shape[1]
-    for i in range(i0, i1):
-        wu[i] = _exp(la[i] - m)
-    acc = 0.0
-    s2 = 0.0
-    for i in range(i0, i1):
-        w = wu[i]
-        acc += w
-        cdf[i] = acc
-        s2 += w * w  # a second chain beside the first: free
-    bsum[b] = acc
-    bs2[b] = s2 if mom else 0.0
-    if mom:
-        for c in range(n_x):
-            bsx[b, c], bsxx[b, c] = _sums4(wu, xs[:, c], i0, i1, _np.float64(xs[0, c]))
-    else:
-        for c in range(n_x):
-            bsx[b, c] = 0.0
-            bsxx[b, c] = 0.0
-
-
-@_register_jitable
-def _sums4(w, v, i0, i1, shift):
-    """(sum w_i v_i, sum w_i (v_i - shift)^2) over [i0, i1) in one pass over ``w`` and ``v``, each
-    with four partial sums so the adds do not wait on each other (the order differs from a plain
-    loop in the last bits: the estimates, which feed nothing back)."""
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    s3 = 0.0
-    q0 = 0.0
-    q1 = 0.0
-    q2 = 0.0
-    q3 = 0.0
-    i = i0
-    while i + 4 <= i1:
-        v0 = _np.float64(v[i])
-        v1 = _np.float64(v[i + 1])
-        v2 = _np.float64(v[i + 2])
-        v3 = _np.float64(v[i + 3])
-        w0 = w[i]
-        w1 = w[i + 1]
-        w2 = w[i + 2]
-        w3 = w[i + 3]
-        s0 += w0 * v0
-        s1 += w1 * v1
-        s2 += w2 * v2
-        s3 += w3 * v3
-        d0 = v0 - shift
-        d1 = v1 - shift
-        d2 = v2 - shift
-        d3 = v3 - shift
-        q0 += w0 * (d0 * d0)
-        q1 += w1 * (d1 * d1)
-        q2 += w2 * (d2 * d2)
-        q3 += w3 * (d3 * d3)
-        i += 4
-    while i < i1:
-        v0 = _np.float64(v[i])
-        d0 = v0 - shift
-        s0 += w[i] * v0
-        q0 += w[i] * (d0 * d0)
-        i += 1
-    return (s0 + s1) + (s2 + s3), (q0 + q1) + (q2 + q3)
-
-
-@_njit(nogil=True)
-def _first_above(cdf, n, pos):
-    """Smallest j with cdf[j] > pos (n - 1 if none): where a sequential merge is at ``pos``."""
-    lo = 0
-    hi = n - 1
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if cdf[mid] > pos:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@_njit(nogil=True, error_model="numpy")
-def _merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos, kk):
-    """Systematic/stratified resampling of output positions [i0, i1), writing the selected particles
-    (and ``lam``) into ``dst`` ([Thesis] Alg. 4; [Embedded] Alg. 1 step 5).
-
-    Output i takes ancestor a(i) = the smallest j with cdf[j] > position_i (n - 1 if none), where
-    position_i = (u_i + i) / n * total (u_i = u, or ``ub[i - i0]`` when stratified): the operations
-    of :mod:`pfbench.resampling`. A sequential merge walks j with two data-dependent branches per
-    particle, which mispredict when the weights are uneven (measured on Ob1: 10 ns per particle of
-    a 28 ns step). Here the walk is branch-free: positions increase with i, so the outputs whose
-    ancestor is <= j are the prefix [0, K_j) with K_j = #{i : position_i < cdf[j]}; K_j is
-    estimated from cdf[j] and corrected by exact comparisons with the positions (normally none),
-    output K_j is marked as starting ancestor j + 1 (a later, zero-weight j overwrites the same
-    mark), and a running maximum over the marks gives a(i). Same ancestors as the merge for any
-    weights (tested against it). The estimates floor(cdf[j] n / total - shift) + 1 (within one of
-    K_j) are computed tile by tile in a loop of their own, which vectorises (``error_model="numpy"``: no
-    zero-division check in the way), the exact corrections in the next. ``anc`` and ``pos``
-    [i0, i1) and ``kk`` [j0, j1) are int64/float64/int64 scratch (the blocks' j ranges are disjoint).
-    """
-    n_x = src.shape[1]
-    total = cdf[n - 1]
-    for i in range(i0, i1):
-        ui = ub[i - i0] if strat else u
-        pos[i] = (ui + i) / n * total
-    j0 = _first_above(cdf, n, pos[i0])
-    j1 = _first_above(cdf, n, pos[i1 - 1])
-    for i in range(i0, i1):
-        anc[i] = j0
-    scale = n / total
-    shift = 0.5 if strat else u
-    for s in range(j0, j1, _TILE):  # here i0 < K_j <= i1 - 1
-        e = min(s + _TILE, j1)
-        for j in range(s, e):
-            kk[j] = min(max(_np.int64(cdf[j] * scale - shift) + 1, i0 + 1), i1 - 1)
-        for j in range(s, e):
-            c = cdf[j]
-            k = kk[j]
-            while k > i0 + 1 and pos[k - 1] >= c:
-                k -= 1
-            while k < i1 - 1 and pos[k] < c:
-                k += 1
-            anc[k] = j + 1
-    a = j0
-    for i in range(i0, i1):
-        a = max(a, anc[i])
-        for c in range(n_x):
-            dst[i, c] = src[a, c]
-        if with_lam:
-            lam_dst[i] = lam_src[a]
-
-
-@_njit(nogil=True)
-def _gather(idx, i0, i1, src, dst, lam_src, lam_dst, with_lam):
-    n_x = src.shape[1]
-    for i in range(i0, i1):
-        j = idx[i]
-        for c in range(n_x):
-            dst[i, c] = src[j, c]
-        if with_lam:
-            lam_dst[i] = lam_src[j]
 
 
 def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,

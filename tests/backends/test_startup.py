@@ -63,3 +63,21 @@ def test_subsystem_commands_resolve_on_use():
     for name in SUBSYSTEMS:
         cmd = main.get_command(ctx, name)
         assert cmd is not None and cmd.name == name
+
+
+def test_kernel_modules_share_what_does_not_depend_on_the_scheme_or_the_model():
+    """The schemes of a model share one pass A (the model inlined: 40 % of a cold compile), and
+    every model shares passes B and C (ordinary cached modules). Catches a scheme's module that
+    compiles its own pass A, and the opposite fault: a pass A shared across models or tile layouts,
+    which would run one model's (or layout's) code for another."""
+    import pfbench
+    from pfbench.backends import numba_backend, numba_resampling, numba_weights
+
+    ob1 = pfbench.models.get("ob1")
+    mods = [numba_backend.kernel_module(ob1, "particle", s) for s in ("systematic", "multinomial", None)]
+    assert mods[0]._pass_a is mods[1]._pass_a is mods[2]._pass_a
+    assert numba_backend.kernel_module(type(ob1), "particle", "systematic")._pass_a is not mods[0]._pass_a
+    other = numba_backend.kernel_module(pfbench.models.get("ob2"), "particle", "systematic")
+    assert other._pass_a is not mods[0]._pass_a
+    assert other._pass_b is mods[0]._pass_b is numba_weights.block_weights
+    assert other._merge_gather is mods[0]._merge_gather is numba_resampling.merge_gather

@@ -77,7 +77,7 @@ def _kernel_entry(cache: Path, suffix: str) -> Path:
 
 
 def _kernel_file(cache: Path) -> Path:
-    found = sorted((cache / "pf" / "kernels").glob("k_particle_*.py"))
+    found = sorted((cache / "pf" / "kernels").glob("k_particle_systematic_*.py"))
     assert len(found) == 1, found
     return found[0]
 
@@ -150,8 +150,8 @@ def test_entry_holding_another_functions_code_is_recompiled(template, cache):
     today numba loads it and calls the wrong machine code."""
     src, _, clean, _ = template
     target = _kernel_entry(cache, ".nbc")
-    other = sorted((cache / "pf" / "numba").glob("kernels_*/k_particle_*._pass_b-*.nbc"))
-    assert other, "the kernel's weighting pass was not cached"
+    other = sorted((cache / "pf" / "numba").glob("kernels_*/k_particle_any_scheme_*._pass_a-*.nbc"))
+    assert other, "the kernel's pass A was not cached"
     shutil.copyfile(other[0], target)
     r = _run(["-c", SCRIPT], cache, src)
     assert r.returncode == 0, r.stderr

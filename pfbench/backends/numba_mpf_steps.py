@@ -1,0 +1,221 @@
+"""The marginalized filter's step math, compiled: the scalar-loop twins of the vectorised helpers of
+:mod:`pfbench.filters.marginalized` that the numba MPF kernel (:mod:`pfbench.backends.numba_mpf`)
+calls.
+
+Same operations on every scalar in the same order as the NumPy helpers, so both backends agree to
+rounding: :func:`sandwich` (``sandwich``), :func:`condition` (``cholesky_batch``, then
+``condition_nonlinear`` and the decorrelation of ``kalman_predict``), :func:`time_update`,
+:func:`kalman_update` and :func:`mixture_moments`. numba compiles such loops several times faster
+than array expressions (each of which becomes a broadcast loop with a temporary). They call no
+model function, so they live here, in an ordinary cached module, and are compiled once per process
+(loaded from disk after that) for every model and scheme, not once per generated kernel module.
+Each is a function of its own, called by the kernel's entry points directly: a compiled function
+costs a fixed ~0.2 s, and every caller optimises the machine code of all it calls once more, so
+they are few and call nothing but :func:`sandwich`.
+"""
+import numpy as np
+
+from pfbench.backends.cache import njit
+from pfbench.models.base import LOG_2PI
+
+
+@njit(nogil=True)
+def sandwich(A, P, Q, AP, S):
+    """Per particle: ``AP`` = A P and ``S`` = A P A' + Q, written into AP (n, d_out, d_in) and S
+    (n, d_out, d_out), for A (n, d_out, d_in), P (n, d_in, d_in), Q (d_out, d_out): N = A^n P A^n'
+    + Q^n of [Schon2005] Alg. 1 step 1 and A^l P A^l' + Q^l of step 2. The twin of
+    :func:`pfbench.filters.marginalized.sandwich`."""
+    n = P.shape[0]
+    d_out = A.shape[1]
+    d_in = A.shape[2]
+    for i in range(n):
+        for a in range(d_out):
+            for b in range(d_in):
+                acc = 0.0
+                for c in range(d_in):
+                    acc += A[i, a, c] * P[i, c, b]
+                AP[i, a, b] = acc
+        for a in range(d_out):
+            for b in range(d_out):
+                acc = 0.0 + Q[a, b]
+                for c in range(d_in):
+                    acc += AP[i, a, c] * A[i, b, c]
+                S[i, a, b] = acc
+
+
+@njit(nogil=True, error_model="numpy")
+def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f, A):
+    """[Schon2005] Alg. 1 steps 1-2 up to the time update, for d_n > 0, per particle: the lower
+    Cholesky factor ``L`` of N = A^n P A^n' + Q^n (pivots floored at 1e-300; the upper triangle
+    is neither written nor read); the sample x^n_t = f^n + A^n m + L z into ``xnew``; x^l_{t-1}
+    conditioned on it, ``mm`` = m + P A^n' N^-1 (x^n_t - f^n - A^n m) and ``Pm`` = P - P A^n'
+    N^-1 A^n P (by back substitution N^-1 (...) = L^-T z and V = L^-1 A^n P); and the x^l
+    transition into ``f``, ``A``: with ``corr`` (a cross-covariance Q^ln) f = f^l + T (x^n_t - f^n)
+    and A = A^l - T A^n, T = Q^ln (Q^n)^-1, else f^l and A^l. ``N`` and ``AP`` = A^n P come from
+    :func:`sandwich`; ``w`` (d_n,) and ``V`` (d_n, d_l) are scratch. The twin of
+    :func:`pfbench.filters.marginalized.cholesky_batch`,
+    :func:`~pfbench.filters.marginalized.condition_nonlinear` and the decorrelation of
+    :func:`~pfbench.filters.marginalized.kalman_predict`."""
+    n = m.shape[0]
+    d_l = m.shape[1]
+    d_n = fn.shape[1]
+    for i in range(n):
+        for j in range(d_n):
+            acc = N[i, j, j]
+            for k in range(j):
+                acc -= L[i, j, k] * L[i, j, k]
+            L[i, j, j] = np.sqrt(1e-300 if acc < 1e-300 else acc)  # np.maximum: NaN stays NaN
+            for r in range(j + 1, d_n):
+                acc = N[i, r, j]
+                for k in range(j):
+                    acc -= L[i, r, k] * L[i, j, k]
+                L[i, r, j] = acc / L[i, j, j]
+        for a in range(d_n):
+            acc = fn[i, a]
+            for c in range(d_l):
+                acc += An[i, a, c] * m[i, c]
+            for b in range(a + 1):
+                acc += L[i, a, b] * z[i, b]
+            xnew[i, a] = acc
+        for a in range(d_n - 1, -1, -1):
+            acc = z[i, a]
+            for b in range(a + 1, d_n):
+                acc -= L[i, b, a] * w[b]
+            w[a] = acc / L[i, a, a]
+        for a in range(d_n):
+            for c in range(d_l):
+                acc = AP[i, a, c]
+                for b in range(a):
+                    acc -= L[i, a, b] * V[b, c]
+                V[a, c] = acc / L[i, a, a]
+        for b in range(d_l):
+            acc = m[i, b]
+            for a in range(d_n):
+                acc += AP[i, a, b] * w[a]
+            mm[i, b] = acc
+        for b in range(d_l):
+            for c in range(d_l):
+                acc = P[i, b, c]
+                for a in range(d_n):
+                    acc -= V[a, b] * V[a, c]
+                Pm[i, b, c] = acc
+        for a in range(d_l):
+            acc = fl[i, a]
+            if corr:
+                for c in range(d_n):
+                    acc += T[a, c] * (xnew[i, c] - fn[i, c])
+            f[i, a] = acc
+            for b in range(d_l):
+                acc = Al[i, a, b]
+                if corr:
+                    for c in range(d_n):
+                        acc -= T[a, c] * An[i, c, b]
+                A[i, a, b] = acc
+
+
+@njit(nogil=True)
+def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
+    """The linear-Gaussian time update of [Schon2005] Alg. 1 step 2: ``m_pred`` = f + A m and
+    ``P_pred`` = A P A' + Q per particle (``AP`` (n, d_l, d_l) scratch). With d_n = 0 this is the
+    whole prediction of the Kalman filter. The twin of
+    :func:`pfbench.filters.marginalized.time_update`."""
+    n = m.shape[0]
+    d_l = m.shape[1]
+    for i in range(n):
+        for a in range(d_l):
+            acc = f[i, a]
+            for b in range(d_l):
+                acc += A[i, a, b] * m[i, b]
+            m_pred[i, a] = acc
+    sandwich(A, P, Q, AP, P_pred)
+
+
+@njit(nogil=True, error_model="numpy")
+def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, ll, m, P):
+    """[Schon2005] Alg. 1 step 4: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll`` (n,) and the
+    measurement update into ``m`` (n, d_l), ``P`` (n, d_l, d_l); ``h0`` (n_y,), ``H`` (n_y, d_l),
+    ``PH`` (d_l,) are scratch. Arguments as for :func:`pfbench.filters.marginalized.kalman_update`
+    (its twin): the outputs whitened with ``W`` when ``whiten`` and processed one scalar at a time,
+    residuals taken about the fixed linearisation point ``m_pred``."""
+    n = m_pred.shape[0]
+    d_l = m_pred.shape[1]
+    n_y = y.shape[0]
+    for i in range(n):
+        for k in range(n_y):
+            if whiten:
+                acc = 0.0
+                for j in range(k + 1):
+                    acc += W[k, j] * h[i, j]
+                h0[k] = acc
+                for a in range(d_l):
+                    acc = 0.0
+                    for j in range(k + 1):
+                        acc += W[k, j] * C[i, j, a]
+                    H[k, a] = acc
+            else:
+                h0[k] = h[i, k]
+                for a in range(d_l):
+                    H[k, a] = C[i, k, a]
+        for a in range(d_l):
+            m[i, a] = m_pred[i, a]
+            for b in range(d_l):
+                P[i, a, b] = P_pred[i, a, b]
+        lli = 0.0
+        for k in range(n_y):
+            r = y[k] - h0[k]
+            s = rvar[k]
+            for a in range(d_l):
+                r -= H[k, a] * (m[i, a] - m_pred[i, a])
+                acc = 0.0
+                for b in range(d_l):
+                    acc += P[i, a, b] * H[k, b]
+                PH[a] = acc
+            for a in range(d_l):
+                s += H[k, a] * PH[a]
+            lli += -0.5 * (r * r / s + np.log(s)) - 0.5 * LOG_2PI
+            for a in range(d_l):
+                K = PH[a] / s
+                m[i, a] += K * r
+                for b in range(d_l):
+                    P[i, a, b] -= K * PH[b]
+        if whiten:
+            lli -= logdet
+        ll[i] = lli
+
+
+@njit(nogil=True, error_model="numpy")
+def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est, cov):
+    """[Schon2005] Alg. 1 step 5: the full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x,
+    n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, given the
+    weighted means of x^n (``mean_n``) and of the m_i (``mean_l``): cov = sum_i w_i (d_i d_i' +
+    [0 0; 0 P_i]); ``dev`` (n, n_x) scratch for the d_i. The twin of
+    :func:`pfbench.filters.marginalized.mixture_moments`."""
+    n = wu.shape[0]
+    d_n = idx_n.shape[0]
+    d_l = idx_l.shape[0]
+    n_x = d_n + d_l
+    for a in range(d_n):
+        est[idx_n[a]] = mean_n[a]
+        for i in range(n):
+            dev[i, idx_n[a]] = xn[i, a] - mean_n[a]
+    for a in range(d_l):
+        est[idx_l[a]] = mean_l[a]
+        for i in range(n):
+            dev[i, idx_l[a]] = m[i, a] - mean_l[a]
+    for r in range(n_x):
+        for c in range(r + 1):
+            acc = 0.0
+            for i in range(n):
+                acc += wu[i] * dev[i, r] * dev[i, c]
+            v = acc / total
+            cov[r, c] = v
+            cov[c, r] = v
+    for a in range(d_l):
+        for b in range(a + 1):
+            acc = 0.0
+            for i in range(n):
+                acc += wu[i] * (0.5 * (P[i, a, b] + P[i, b, a]))
+            v = acc / total
+            cov[idx_l[a], idx_l[b]] += v
+            if a != b:
+                cov[idx_l[b], idx_l[a]] += v
