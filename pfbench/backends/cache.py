@@ -304,8 +304,9 @@ _INSTALLED = False
 
 
 def install() -> None:
-    """Put the package-keyed locator first in numba's list and use the constant-message shape
-    error (see the module docstring) (idempotent)."""
+    """Put the package-keyed locator first in numba's list, use the constant-message shape error
+    (see the module docstring) and defer interrupts during compiles
+    (:mod:`pfbench.backends.interrupts`) (idempotent)."""
     global _INSTALLED
     if _INSTALLED:
         return
@@ -316,6 +317,9 @@ def install() -> None:
     if not any(getattr(c, "__name__", "") == "PackageKeyedLocator" for c in classes):
         classes.insert(0, _locator_class())
     constant_shape_error()
+    from .interrupts import defer_during_compiles
+
+    defer_during_compiles()
     _INSTALLED = True
 
 

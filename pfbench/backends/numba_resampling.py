@@ -3,7 +3,9 @@
 Same contract, same random draws and the same floating-point operations as the NumPy
 reference, so under the same generator state both return identical indices (tested).
 The filter kernels call one scheme kernel (:data:`KERNELS`) with the running sum of the
-unnormalised weights.
+unnormalised weights. The particle kernel's resampling pass (:func:`merge_gather` for systematic
+and stratified, :func:`gather` after an index scheme) is here too: it calls no model, so every
+model compiles against one cached copy.
 """
 from __future__ import annotations
 
@@ -204,7 +206,8 @@ def _first_above(cdf, n, pos):
 @njit(nogil=True, error_model="numpy")
 def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos, kk):
     """Systematic/stratified resampling of output positions [i0, i1), writing the selected particles
-    (and ``lam``) into ``dst`` ([Thesis] Alg. 4; [Embedded] Alg. 1 step 5).
+    (and ``lam``) into ``dst`` ([Thesis] Alg. 4; [Embedded] Alg. 1 step 5): pass C of the particle
+    kernel (:mod:`pfbench.backends.numba_particle`).
 
     Output i takes ancestor a(i) = the smallest j with cdf[j] > position_i (n - 1 if none), where
     position_i = (u_i + i) / n * total (u_i = u, or ``ub[i - i0]`` when stratified): the operations

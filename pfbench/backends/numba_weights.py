@@ -1,7 +1,9 @@
 """Log-sum-exp weighting and weighted moments for the numba backend: the one compiled weighting
 that every numba filter kernel (particle, marginalized, guided) calls. The NumPy twin is
 :func:`pfbench.backends.numpy_backend.weigh`; both do the same floating-point operations in the
-same order, which is what makes the backends agree under common random numbers.
+same order, which is what makes the backends agree under common random numbers. The particle
+kernel's pass B (:func:`block_weights`: the same exponential and running sum, per stream block,
+with the moments) is here too: it calls no model, so every model compiles against one cached copy.
 """
 from __future__ import annotations
 
@@ -88,8 +90,9 @@ def moments(xg, wu, total, mean_out, var_out):
 
 @njit(nogil=True, error_model="numpy")
 def block_weights(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
-    """Pass B of the particle kernel (:mod:`pfbench.backends.numba_particle`) on [i0, i1): w = exp(a - m), block running sum (cdf), and, when ``mom``, the block's
-    sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
+    """Pass B of the particle kernel (:mod:`pfbench.backends.numba_particle`) on [i0, i1) of block
+    ``b``: w = exp(a - m), the block's running sum (cdf), and, when ``mom``, the block's sums of
+    w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
 
     Three kinds of loop over the block, each as fast as its dependences allow:
 
