@@ -45,6 +45,7 @@ def _merge(cdf, n, start_u, stride_u, idx):
 
 @njit(nogil=True, inline="always")
 def _search_right(cdf, n, value):
+    """Smallest j with cdf[j] > value (n - 1 if none)."""
     j = np.searchsorted(cdf, value, side="right")
     return j if j < n else n - 1
 
@@ -189,20 +190,6 @@ def any_scheme(code, w, cdf, rng, idx):
         residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == 4)
 
 
-@njit(nogil=True)
-def _first_above(cdf, n, pos):
-    """Smallest j with cdf[j] > pos (n - 1 if none): where a sequential merge is at ``pos``."""
-    lo = 0
-    hi = n - 1
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if cdf[mid] > pos:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
 @njit(nogil=True, error_model="numpy")
 def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos, kk):
     """Systematic/stratified resampling of output positions [i0, i1), writing the selected particles
@@ -228,8 +215,8 @@ def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_
     for i in range(i0, i1):
         ui = ub[i - i0] if strat else u
         pos[i] = (ui + i) / n * total
-    j0 = _first_above(cdf, n, pos[i0])
-    j1 = _first_above(cdf, n, pos[i1 - 1])
+    j0 = _search_right(cdf, n, pos[i0])  # where a sequential merge is at the block's first position
+    j1 = _search_right(cdf, n, pos[i1 - 1])
     for i in range(i0, i1):
         anc[i] = j0
     scale = n / total

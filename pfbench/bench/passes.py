@@ -155,8 +155,9 @@ def _timer(fn, args, n: int, m: int):
     return once
 
 
-def _part_timers(n: int, m: int, dtype: str) -> dict:
-    """Part name -> timer of one run, for the Ob1 bootstrap step with ``dtype`` particles."""
+def _part_timers(n: int, m: int, dtype: str) -> tuple[dict, str]:
+    """(part name -> timer of one run, the particle dtype the filter stored) for the Ob1 bootstrap
+    step with ``dtype`` particles: the parts run on that filter's own particles and weights."""
     from .. import models
     from ..backends import numba_backend
     from ..filters import run_filter
@@ -170,11 +171,11 @@ def _part_timers(n: int, m: int, dtype: str) -> dict:
                      store_particles=True, dtype=dtype)
     weights = run.extras["weights"][0]
     cdfs = np.cumsum(weights, axis=1)
-    x = np.ascontiguousarray(run.extras["particles"][0, m // 2], dtype=dtype)
+    x = np.ascontiguousarray(run.extras["particles"][0, m // 2])  # in the dtype the filter stored
     x64 = x.astype(np.float64)  # what the model sees
     la = np.log(np.maximum(weights[m // 2], 1e-300)) - np.log(weights[m // 2].max())
     rng = np.random.default_rng(0)
-    noise64 = rng.standard_normal((n, 1), dtype=dtype).astype(np.float64)  # as the model gets it
+    noise64 = rng.standard_normal((n, 1), dtype=x.dtype).astype(np.float64)  # as the model gets it
     return {"normals": _timer(normals, (rng, n, m, x[:1]), n, m),
             "model": _timer(model_fn, (p, traj.y, x64, noise64, m), n, m),
             "transition_c": _timer(transition_c, (p, x64, noise64, m), n, m),
@@ -184,10 +185,12 @@ def _part_timers(n: int, m: int, dtype: str) -> dict:
             "exp": _timer(exps, (la, m), n, m),
             "pass_b": _timer(whole_b, (la, x, m), n, m),
             "resample": _timer(resample, (cdfs, x, rng), n, m),
-            "filter": lambda: filter_ns(model, traj, n, "numba", dtype, 1, n_threads=1)}
+            "filter": lambda: filter_ns(model, traj, n, "numba", dtype, 1, n_threads=1)}, str(x.dtype)
 
 
 def _parts(timings: dict, n: int, m: int, dtype: str) -> dict:
+    """Medians of the per-round timings; ``dtype``: the particle dtype the parts ran on (as the filter
+    stored it, not as asked: a harness that ran another dtype says so)."""
     out = {"steps": m, "particles": n, "dtype": dtype, **{k: statistics.median(v) for k, v in timings.items()}}
     out["rest"] = out["filter"] - out["pass_a"] - out["pass_b"] - out["resample"]
     return out
@@ -196,18 +199,20 @@ def _parts(timings: dict, n: int, m: int, dtype: str) -> dict:
 def passes_ns(n: int = 1000, m: int = 1000, repeats: int = 5, dtype: str = "float64") -> dict:
     """ns per particle-step of each part of the Ob1 bootstrap step with ``dtype`` particles (see
     the module docstring): medians of ``repeats`` rounds, each timing every part once."""
-    return _parts(interleaved(_part_timers(n, m, dtype), repeats), n, m, dtype)
+    timers, stored = _part_timers(n, m, dtype)
+    return _parts(interleaved(timers, repeats), n, m, stored)
 
 
 def dtype_parts(n: int, m: int, repeats: int = 5) -> dict:
     """The parts in float64 and in float32, timed in the same interleaved rounds (every part of both
     dtypes once per round), and each part's float32 speed-up as the median of its per-round
     float64 / float32 ratios (a change of the machine's speed between rounds cancels)."""
-    timers = {(dt, k): f for dt in ("float64", "float32") for k, f in _part_timers(n, m, dt).items()}
+    made = {dt: _part_timers(n, m, dt) for dt in ("float64", "float32")}
+    timers = {(dt, k): f for dt, (parts, _) in made.items() for k, f in parts.items()}
     rounds = interleaved(timers, repeats)
-    by_dtype = {dt: {k: v for (d, k), v in rounds.items() if d == dt} for dt in ("float64", "float32")}
-    out = {dt: _parts(by_dtype[dt], n, m, dt) for dt in by_dtype}
-    out["speedup"] = {k: paired_ratio(rounds[("float64", k)], rounds[("float32", k)]) for _, k in timers}
+    by_dtype = {dt: {k: v for (d, k), v in rounds.items() if d == dt} for dt in made}
+    out = {dt: _parts(by_dtype[dt], n, m, made[dt][1]) for dt in made}
+    out["speedup"] = {k: paired_ratio(rounds[("float64", k)], rounds[("float32", k)]) for k in by_dtype["float64"]}
     out["rounds"] = by_dtype
     return out
 
