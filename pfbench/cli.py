@@ -272,6 +272,63 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         click.echo(f"note: {out['note']}")
 
 
+# --------------------------------------------------------------------------- compile
+def _listed(value: str, allowed, flag: str) -> list[str]:
+    """``"a,b"`` -> ["a", "b"], each one of ``allowed`` (None: any); a one-line error otherwise."""
+    items = [v.strip() for v in str(value).split(",")]
+    if not all(items):
+        raise click.BadParameter(f"{value!r} has an empty item; give values such as a,b", param_hint=f"'{flag}'")
+    bad = [v for v in items if allowed is not None and v not in allowed]
+    if bad:
+        raise click.BadParameter(f"{bad[0]!r} is not one of {', '.join(allowed)}", param_hint=f"'{flag}'")
+    return items
+
+
+@main.command("compile")
+@click.option("--model", "model_names", default=None, metavar="MODEL[,MODEL...]",
+              help="Model specs as for `run`, comma-separated (default: every registered model).")
+@click.option("--method", "methods", default="bootstrap", show_default=True,
+              help=f"Comma-separated methods: {', '.join(METHODS)}.")
+@click.option("--resampling", "schemes", default="systematic", show_default=True,
+              help=f"Comma-separated schemes: {', '.join(SCHEMES)}.")
+@click.option("--dtype", "dtypes", default="float64", show_default=True,
+              help=f"Comma-separated particle dtypes: {', '.join(DTYPES)}.")
+@click.option("--all-threads", is_flag=True,
+              help="Also the all-threads kernel of one particle filter (used above 8192 particles "
+                   "unless --threads 1).")
+@click.option("--jobs", type=int, default=None, callback=positive_int("jobs"),
+              help="Processes compiling side by side (default: all cores).")
+@click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON.")
+def compile_cmd(model_names, methods, schemes, dtypes, all_threads, jobs, as_json):
+    """Compile kernels ahead of the first run, so later runs load them from the cache.
+
+    Each configuration runs once on a tiny problem; `make all` does this for every model's
+    default `pfbench run`. Exit code 2 if a configuration failed, not if it is not applicable.
+    """
+    from . import models
+    from .backends.cache import cache_root
+    from .precompile import compile_all, targets, text
+
+    specs = _listed(model_names, None, "--model") if model_names is not None else models.names()
+    for spec in specs:  # one-line errors for bad names before any process starts
+        name, kw = models.parse_spec(spec)
+        models.get(name, **kw)
+    todo = targets(specs, _listed(methods, METHODS, "--method"), _listed(schemes, SCHEMES, "--resampling"),
+                   _listed(dtypes, DTYPES, "--dtype"), all_threads)
+    rows = compile_all(todo, jobs=jobs, progress=not as_json)
+    if as_json:
+        from .io import to_json
+
+        click.echo(to_json(rows))
+    else:
+        for line in text(rows, str(cache_root())):
+            click.echo(line)
+    failed = [r for r in rows if r["status"] == "failed"]
+    if failed:
+        raise PfbenchError(f"compile: {len(failed)} configuration(s) failed, the first: {failed[0]['model']} "
+                           f"{failed[0]['method']}: {failed[0]['detail']}")
+
+
 # --------------------------------------------------------------------------- recipes
 @main.command("list")
 @click.option("--json", "as_json", is_flag=True)

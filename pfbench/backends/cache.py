@@ -12,8 +12,9 @@ therefore installs a numba cache locator for
 whose source stamp is :func:`package_fingerprint` (a hash of every ``.py`` file of the package,
 the Python, numba and NumPy versions) combined with the hash of the function's own file. Any edit
 anywhere in the package, or in the model's file, changes the stamp, and numba recompiles instead of
-loading old code. The entries live under ``$PFBENCH_CACHE_DIR/numba`` (default
-``~/.cache/pfbench/numba``), apart from numba's own cache.
+loading old code. The entries live under ``cache_root() / "numba"`` (``$PFBENCH_CACHE_DIR``, else
+the virtual environment's or the user's cache, see :func:`cache_root`), apart from numba's own
+cache.
 
 Damaged entries heal themselves. Every function compiled through :func:`njit` gets a
 :class:`HealingFunctionCache` (set on that dispatcher only: numba's classes and the caches of code
@@ -55,9 +56,20 @@ _TRACKED: set[str] = set()
 
 
 def cache_root() -> Path:
-    """``$PFBENCH_CACHE_DIR`` (default ``~/.cache/pfbench``)."""
-    root = os.environ.get("PFBENCH_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "pfbench")
-    return Path(root)
+    """Where pfbench keeps compiled code: ``$PFBENCH_CACHE_DIR``; else, when pfbench runs from a
+    virtual environment it can write to, ``<environment>/var/cache/pfbench``; else
+    ``~/.cache/pfbench``.
+
+    One cache per installation: ``make all`` (which precompiles, see :mod:`pfbench.precompile`),
+    the tests and every later command of the activated environment share it, and removing the
+    environment removes it (entries are keyed on the package source, so stale ones never load).
+    """
+    root = os.environ.get("PFBENCH_CACHE_DIR")
+    if root:
+        return Path(root)
+    if sys.prefix != sys.base_prefix and os.access(sys.prefix, os.W_OK):
+        return Path(sys.prefix) / "var" / "cache" / "pfbench"
+    return Path(os.path.expanduser("~")) / ".cache" / "pfbench"
 
 
 def package_fingerprint() -> str:

@@ -16,7 +16,7 @@ machine code from disk instead of recompiling. The file name carries a hash of t
 package, the model's module source and the numba/NumPy versions, so editing anything gives a
 new module and a fresh compile, never a stale kernel (see :mod:`pfbench.backends.cache`).
 
-Cache location: ``$PFBENCH_CACHE_DIR`` (default ``~/.cache/pfbench``) ``/kernels``.
+Cache location: ``kernels`` in :func:`pfbench.backends.cache.cache_root`.
 
 A generated file that is damaged (truncated, garbage, not UTF-8, a directory in its place) no longer
 matches the text pfbench generates: it is rewritten (atomically: temporary file + rename, so a
@@ -286,9 +286,21 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
             k = min(int(n_threads or numba.config.NUMBA_NUM_THREADS), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
                 numba.set_num_threads(k)
-                mod.run_group_parallel(*args)
+                try:
+                    mod.run_group_parallel(*args)
+                except SystemError as exc:
+                    raise _raised_in_parallel(exc) from None
         else:
             mod.run_group(*args)
+
+
+def _raised_in_parallel(exc: SystemError) -> BaseException:
+    """The exception compiled code raised inside a parallel region (the model's own ``raise``,
+    e.g. an :class:`~pfbench.errors.UnsupportedError`): numba's parallel kernel returns with it
+    set, which Python reports as a SystemError caused by it. The serial kernel raises it as it
+    is, so the all-threads one does too; a SystemError without such a cause stays one."""
+    cause = exc.__cause__
+    return cause if isinstance(cause, Exception) and not isinstance(cause, SystemError) else exc
 
 
 def work_arrays(x, n_blocks: int) -> tuple:

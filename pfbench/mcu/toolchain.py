@@ -104,9 +104,10 @@ def compiler_version() -> str:
 
 
 def cache_root() -> Path:
-    base = os.environ.get("PFBENCH_CACHE_DIR") or os.path.join(
-        os.path.expanduser("~"), ".cache", "pfbench")
-    return Path(base) / "mcu"
+    """Built images and objects: ``mcu`` in pfbench's cache (:func:`pfbench.backends.cache.cache_root`)."""
+    from ..backends.cache import cache_root as pfbench_cache
+
+    return pfbench_cache() / "mcu"
 
 
 def run_tool(cmd: list[str], cwd: Path, stdout=None) -> None:

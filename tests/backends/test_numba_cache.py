@@ -122,3 +122,28 @@ def test_self_healing_cache_is_scoped_to_pfbench_functions(tmp_path):
     assert type(ours._cache).__name__ == "HealingFunctionCache"
     assert type(theirs._cache) is FunctionCache
     assert type(cache.njit(cache=False)(outside)._cache).__name__ == "NullCache"
+
+
+def test_cache_root_is_the_variable_else_the_environments_else_the_users(monkeypatch, tmp_path):
+    """$PFBENCH_CACHE_DIR wins; without it a writable virtual environment keeps its own cache (so
+    `make all`, which precompiles, and the activated environment share one); outside one, or in
+    one that cannot be written, the user's cache. Catches: the variable ignored, the environment
+    not detected, a read-only environment chosen."""
+    from pfbench.backends import cache
+    from pfbench.mcu import toolchain
+
+    venv = tmp_path / "venv"
+    venv.mkdir()
+    monkeypatch.setenv("PFBENCH_CACHE_DIR", str(tmp_path / "chosen"))
+    monkeypatch.setattr(sys, "prefix", str(venv))
+    monkeypatch.setattr(sys, "base_prefix", str(tmp_path / "base"))
+    assert cache.cache_root() == tmp_path / "chosen"
+    assert toolchain.cache_root() == tmp_path / "chosen" / "mcu"
+    monkeypatch.delenv("PFBENCH_CACHE_DIR")
+    assert cache.cache_root() == venv / "var" / "cache" / "pfbench"
+    monkeypatch.setattr(os, "access", lambda path, mode: False)
+    assert cache.cache_root() == Path.home() / ".cache" / "pfbench"
+    monkeypatch.undo()
+    monkeypatch.delenv("PFBENCH_CACHE_DIR", raising=False)
+    monkeypatch.setattr(sys, "base_prefix", sys.prefix)
+    assert cache.cache_root() == Path.home() / ".cache" / "pfbench"
