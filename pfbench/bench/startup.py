@@ -140,6 +140,8 @@ def text(res: dict) -> list[str]:
     out.append(f"(`pfbench run ... --steps {res['steps']} --particles {res['particles']}` as a subprocess, "
                f"wall time; cold = empty NUMBA_CACHE_DIR and PFBENCH_CACHE_DIR, warm = median of "
                f"{res['repeats']} reruns on the filled cache; compile = cold - warm)")
+    out.append("(`pfbench compile`, which `make all` runs for every model's default run, pays the compile "
+               "ahead: a first run after it is a warm start)")
     if res["package_changed"]:
         out.append("warning: the package source changed during the measurement (marked cases), so their "
                    "warm runs may include recompilation")
