@@ -306,7 +306,7 @@ def compile_cmd(model_names, methods, schemes, dtypes, all_threads, jobs, as_jso
     default `pfbench run`. Exit code 2 if a configuration failed, not if it is not applicable.
     """
     from . import models
-    from .backends.cache import cache_root
+    from .backends.cache import check_cache_dir
     from .precompile import compile_all, targets, text
 
     specs = _listed(model_names, None, "--model") if model_names is not None else models.names()
@@ -315,13 +315,14 @@ def compile_cmd(model_names, methods, schemes, dtypes, all_threads, jobs, as_jso
         models.get(name, **kw)
     todo = targets(specs, _listed(methods, METHODS, "--method"), _listed(schemes, SCHEMES, "--resampling"),
                    _listed(dtypes, DTYPES, "--dtype"), all_threads)
+    cache = check_cache_dir()  # an unusable cache is one line before any process starts
     rows = compile_all(todo, jobs=jobs, progress=not as_json)
     if as_json:
         from .io import to_json
 
         click.echo(to_json(rows))
     else:
-        for line in text(rows, str(cache_root())):
+        for line in text(rows, str(cache)):
             click.echo(line)
     failed = [r for r in rows if r["status"] == "failed"]
     if failed:

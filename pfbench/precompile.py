@@ -62,12 +62,13 @@ def compile_target(target: Target) -> dict:
     """Compile (or load) the kernel of ``target`` by running it once on a tiny problem.
 
     Returns ``asdict(target)`` plus ``status`` (``"ready"``; ``"not applicable"`` when the model
-    does not support the method or dtype, an :class:`~pfbench.errors.UnsupportedError` or
-    :class:`~pfbench.errors.InputError` of the run; ``"failed"`` on any other
-    :class:`~pfbench.errors.PfbenchError`), ``detail`` (the error's one line) and ``seconds``.
+    does not support the method or the dtype: the run's :class:`~pfbench.errors.UnsupportedError`,
+    or its :class:`~pfbench.errors.InputError` refusing the combination; ``"failed"`` on any other
+    :class:`~pfbench.errors.PfbenchError`, such as a :class:`~pfbench.errors.DataError` for a
+    cache directory that cannot be written), ``detail`` (the error's one line) and ``seconds``.
     """
     from . import models
-    from .errors import InputError, PfbenchError, UnsupportedError
+    from .errors import DataError, InputError, PfbenchError, UnsupportedError
     from .filters import run_filter
 
     row = asdict(target)
@@ -83,10 +84,9 @@ def compile_target(target: Target) -> dict:
                    backend="numba", dtype=target.dtype, seed=0, n_threads=None if target.all_threads else 1,
                    _block=2 if target.all_threads else None)
         row.update(status="ready", detail=None)
-    except (UnsupportedError, InputError) as exc:
-        row.update(status="not applicable", detail=" ".join(str(exc).split()))
     except PfbenchError as exc:
-        row.update(status="failed", detail=" ".join(str(exc).split()))
+        refused = isinstance(exc, (UnsupportedError, InputError)) and not isinstance(exc, DataError)
+        row.update(status="not applicable" if refused else "failed", detail=" ".join(str(exc).split()))
     row["seconds"] = time.perf_counter() - t0
     return row
 

@@ -72,6 +72,22 @@ def cache_root() -> Path:
     return Path(os.path.expanduser("~")) / ".cache" / "pfbench"
 
 
+_USABLE: set[Path] = set()
+
+
+def check_cache_dir() -> Path:
+    """:func:`cache_root`, created and probed once per process and directory: a directory that
+    cannot be written is a one-line :class:`~pfbench.errors.DataError` naming it and
+    ``PFBENCH_CACHE_DIR`` (not the numba traceback or write error of the first kernel file)."""
+    root = cache_root()
+    if root not in _USABLE:
+        from ..resources import check_writable
+
+        check_writable(root, "PFBENCH_CACHE_DIR (the compile cache)", directory=True)
+        _USABLE.add(root)
+    return root
+
+
 def package_fingerprint() -> str:
     """Hash of every ``.py`` file of the installed package plus the Python, numba and NumPy versions."""
     global _FINGERPRINT

@@ -63,7 +63,7 @@ def register_family(family: str, filename: str, functions: tuple[str, ...]) -> N
 
 
 def cache_dir() -> Path:
-    return cache.cache_root() / "kernels"
+    return cache.check_cache_dir() / "kernels"
 
 
 def _model_class(module: str, qualname: str) -> type:

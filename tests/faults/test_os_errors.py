@@ -102,3 +102,38 @@ def test_top_level_net_for_a_user_path_but_a_traceback_for_bugs(monkeypatch):
         monkeypatch.setattr(sweep_cli, "_do_run", raising(exc))
         r = CliRunner().invoke(cli.main, ["sweep"])
         assert r.exit_code == 1 and "Traceback" in r.stderr and "internal error" in r.stderr
+
+
+@pytest.mark.parametrize("args", [["run", "--model", "ob1", "--steps", "3", "--particles", "5"],
+                                  ["compile", "--model", "ob1", "--jobs", "1"]])
+def test_compile_cache_that_cannot_be_written(a_file, monkeypatch, args):
+    """A compile cache under a regular file: one line naming the directory and PFBENCH_CACHE_DIR,
+    before any kernel is compiled, for a run and for `pfbench compile` (where it is a failure,
+    exit 2, not a configuration that does not apply). Catches: the first kernel file's write
+    error advising "--out", a compile that reports it as "not applicable" and exits 0."""
+    from pfbench.backends import cache
+
+    monkeypatch.setenv("PFBENCH_CACHE_DIR", str(a_file / "cache"))
+    monkeypatch.setattr(cache, "_USABLE", set())
+    r = CliRunner().invoke(cli.main, args)
+    err = _one_line(r, str(a_file / "cache"), "PFBENCH_CACHE_DIR")
+    assert "--out" not in err
+
+
+def test_compile_sorts_errors_into_not_applicable_and_failed(monkeypatch):
+    """The run's refusal of a combination (UnsupportedError, InputError) is "not applicable"; a
+    DataError (an unusable file or directory) or another PfbenchError is "failed". Catches: a
+    DataError (an InputError subclass) counted as not applicable, a failure hidden."""
+    import pfbench.filters
+    from pfbench import precompile
+    from pfbench.errors import InputError, NumericalError, UnsupportedError
+
+    for exc, status in ((UnsupportedError("no structure"), "not applicable"),
+                        (InputError("float64 only"), "not applicable"),
+                        (DataError("cannot use the cache"), "failed"),
+                        (NumericalError("diverged"), "failed")):
+        def boom(*a, exc=exc, **k):
+            raise exc
+        monkeypatch.setattr(pfbench.filters, "run_filter", boom)
+        row = precompile.compile_target(precompile.Target("ob1"))
+        assert (row["status"], row["detail"]) == (status, str(exc))
