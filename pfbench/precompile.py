@@ -117,15 +117,27 @@ def compile_all(todo: list[Target], jobs: int | None = None, progress: bool = Tr
                     bar.update()
         else:
             from concurrent.futures import as_completed
+            from concurrent.futures.process import BrokenProcessPool
 
-            from .procs import process_pool
+            from .errors import PfbenchError
+            from .procs import process_pool, stop_pool
 
-            with process_pool(jobs) as pool:
+            pool = process_pool(jobs)
+            try:
                 futures = {pool.submit(_compile_group, g): g for g in groups.values()}
                 for fut in as_completed(futures):
-                    for t, row in zip(futures[fut], fut.result()):
+                    try:
+                        rows = fut.result()
+                    except BrokenProcessPool:
+                        raise PfbenchError("a compile worker process died (killed, e.g. by the out-of-memory "
+                                           "killer); use --jobs 1, or fewer --model at a time") from None
+                    for t, row in zip(futures[fut], rows):
                         done[t] = row
                     bar.update(len(futures[fut]))
+            except BaseException:  # Ctrl-C or an error: end now, not after the compiles under way
+                stop_pool(pool)
+                raise
+            pool.shutdown(wait=True)
     return [done[t] for t in todo]
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError, PfbenchError
-from ..procs import exclusive_lock, process_pool
+from ..procs import exclusive_lock, process_pool, stop_pool
 from ..resources import path_error
 from .core import n_tasks, run_chunk, task_key, warm_up
 from .store import Store, check_store_name, export_parquet
@@ -204,10 +204,7 @@ def _run_local(spec, units, workers, done):
                                        "fewer --workers or smaller --particles, then re-run to resume") from None
                 done(recs, wall, who)
     except BaseException:
-        for p in list(getattr(pool, "_processes", {}).values()):
-            if p.is_alive():
-                p.terminate()
-        pool.shutdown(wait=False, cancel_futures=True)
+        stop_pool(pool)
         raise
     pool.shutdown(wait=True)
 
