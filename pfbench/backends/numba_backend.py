@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import write_text
-from . import cache, pcg64
+from . import cache, native_call, pcg64
 
 _HERE = Path(__file__).resolve().parent
 #: family -> (kernel module file, the model functions it calls as ``_<name>``)
@@ -265,6 +265,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
 
     from .numpy_backend import BLOCK, block_bounds, draw_initial
 
+    y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types pass_a_types gives
     bounds = block_bounds(x.shape[1], int(block or BLOCK))
     if hist_x is None:
         G, n, n_x = x.shape
@@ -275,9 +276,11 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = kernel_module(model, "particle", scheme)
     draw_initial(model.kernel_functions()["initial"], p, rng, x)  # in NumPy, as the NumPy backend
+    work = work_arrays(x, bounds.shape[0] - 1)
+    address = native_call.entry_address(mod._pass_a, pass_a_types(p, rng, y, u, work))
     args = (p, rng, brngs, y, u, x, int(model.n_noise), int(method),
             int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
-            *work_arrays(x, bounds.shape[0] - 1))
+            *work, address)
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
         if len(brngs) > 1 and n_threads != 1:
@@ -301,6 +304,22 @@ def _raised_in_parallel(exc: SystemError) -> BaseException:
     is, so the all-threads one does too; a SystemError without such a cause stays one."""
     cause = exc.__cause__
     return cause if isinstance(cause, Exception) and not isinstance(cause, SystemError) else exc
+
+
+def pass_a_types(p, rng, y, u, work) -> tuple:
+    """The numba types of the arguments the particle kernel's driver passes to pass A (its call in
+    ``numba_particle._run_group``), from the driver's own arguments: the parameters, a block
+    generator, the rows ``y[t]`` and ``u[t]`` of C-contiguous arrays, the step, the particles of one
+    filter ``xs[k, g]``, the block bounds and noise count, the log-weights ``lw[g]``, the flags and
+    ``-log n``, and the rows of ``fwork``. The driver's compile refuses any other types
+    (:func:`pfbench.backends.native_call.call`)."""
+    import numba
+
+    xs, lw, fwork = work[0], work[1], work[2]
+    i, b = numba.types.int64, numba.types.boolean
+    row = numba.typeof(fwork[0])
+    return (numba.typeof(p), numba.typeof(rng), numba.typeof(y[0]), numba.typeof(u[0]), i,
+            numba.typeof(xs[0, 0]), i, i, i, numba.typeof(lw[0]), b, numba.types.float64, b, row, b, row, row)
 
 
 def work_arrays(x, n_blocks: int) -> tuple:

@@ -30,6 +30,8 @@ and are compiled once per process (and loaded from disk after that) for every mo
 Pass A inlines the model; it does not depend on the scheme, so a scheme's module binds the
 ``_pass_a`` of the model's any-scheme module (``SCHEME_FREE`` in
 :mod:`pfbench.backends.numba_backend`), and the schemes of a model share one compilation of it.
+The driver calls pass A through its native entry point (:mod:`pfbench.backends.native_call`), so
+numba does not compile pass A and the model into the driver again.
 
 Stream blocks and threads
 -------------------------
@@ -78,6 +80,7 @@ from numba.core.imputils import impl_ret_borrowed as _impl_ret_borrowed
 
 from pfbench.backends import pcg64 as _pcg64
 from pfbench.backends.cache import njit as _njit
+from pfbench.backends.native_call import call as _native_call
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
@@ -338,7 +341,7 @@ def _max(a, i0, i1, m):
 
 
 def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,
-               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate):
+               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate, pass_a_address):
     """Run a group of G independent filters over all steps (random streams in documented order).
 
     x: (G, n, n_x) particle buffer (its dtype is the particle dtype) holding the initial particles
@@ -351,6 +354,9 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
     count. xs ... gstate: work arrays (:func:`pfbench.backends.numba_backend.work_arrays`), allocated
     by the caller because every array constructor compiled here is another 0.1 s of a cold start.
+    pass_a_address: the native entry point of ``_pass_a`` for the argument types of its call here
+    (:func:`pfbench.backends.numba_backend.pass_a_types`, :mod:`pfbench.backends.native_call`):
+    the driver calls pass A, the model inlined, without compiling it again.
     """
     G = x.shape[0]
     n = x.shape[1]
@@ -385,9 +391,10 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
             for stage in range(2 if method == _ASIR else 1):
                 fs = method == _ASIR and stage == 0  # first stage, [Thesis] Alg. 6
                 src = xs[cur[g], g]
-                for b in _prange(nb):
-                    bmax[b] = _pass_a(p, brngs[b], yt, ut, t, src, bounds[b], bounds[b + 1], n_noise,
-                                      lwg, flat[g] == 1, mlogn, fs, lam, method == _ASIR and not fs, lam_all, la)
+                for b in _prange(nb):  # pass A through its address: not compiled into the driver
+                    bmax[b] = _native_call(_pass_a, pass_a_address, p, brngs[b], yt, ut, t, src, bounds[b],
+                                           bounds[b + 1], n_noise, lwg, flat[g] == 1, mlogn, fs, lam,
+                                           method == _ASIR and not fs, lam_all, la)
                 m = -_np.inf
                 for b in range(nb):
                     if bmax[b] > m:

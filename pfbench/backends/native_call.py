@@ -1,0 +1,74 @@
+"""Calling a compiled function through its address, so that the caller does not compile it again.
+
+numba links the LLVM code of every jitted function a jitted caller calls into the caller's own
+module, then optimises and emits the whole module: the particle kernel's driver (compiled per
+model and scheme) recompiled pass A with the model's functions inlined in it, about half of the
+driver's module (see docs/ARCHITECTURE.md, "Compile time"). :func:`call` calls a function that is
+already compiled through the address of its native entry point instead, with numba's own calling
+convention (the callee's exceptions reach the caller as they would through a direct call), and
+:func:`entry_address` gives that address. The address is an ordinary run-time argument of the
+caller, so the caller's machine code stays disk-cacheable; a call costs an indirect call
+(measured: about 4 ns).
+
+The host compiles the callee for exactly the argument types of the call site and passes its
+address (:func:`entry_address` registers those types); the call site, when it is compiled,
+refuses argument types that the host did not register (a ``TypingError``), so a host that
+computes them differently from the call site fails at compile time instead of calling code
+compiled for other types.
+"""
+from __future__ import annotations
+
+import threading
+
+from numba.core import cgutils, types
+from numba.core.errors import TypingError
+from numba.extending import intrinsic
+
+_LOCK = threading.Lock()
+#: (dispatcher, argument types) -> native entry address
+_ADDRESSES: dict[tuple[object, tuple], int] = {}
+#: dispatcher -> the argument types the host registered for it
+_REGISTERED: dict[object, set[tuple]] = {}
+
+
+def entry_address(dispatcher, argtypes: tuple) -> int:
+    """Compile (or load from the disk cache) ``dispatcher`` for ``argtypes`` (numba types) and return
+    the address of its native entry point, for :func:`call`; registers ``argtypes`` as a signature
+    a call site may use."""
+    argtypes = tuple(argtypes)
+    key = (dispatcher, argtypes)
+    with _LOCK:
+        if key not in _ADDRESSES:
+            dispatcher.compile(argtypes)
+            cres = dispatcher.overloads[argtypes]
+            _ADDRESSES[key] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
+            _REGISTERED.setdefault(dispatcher, set()).add(argtypes)
+        return _ADDRESSES[key]
+
+
+@intrinsic
+def call(typingctx, callee, address, *args):
+    """``callee(*args)`` through ``address`` (:func:`entry_address` of ``callee`` for these argument
+    types). ``callee`` is the jitted function itself, which gives the call its types; it is not
+    compiled into the caller."""
+    if not isinstance(callee, types.Dispatcher) or not isinstance(address, types.Integer):
+        return None
+    if len(args) == 1 and isinstance(args[0], types.StarArgTuple):
+        args = args[0].types
+    argtypes = tuple(args)
+    if argtypes not in _REGISTERED.get(callee.dispatcher, ()):
+        raise TypingError(f"native call of {callee.dispatcher.py_func.__qualname__} with argument types "
+                          f"{argtypes} that the host did not compile (entry_address)")
+    restype = callee.dispatcher.overloads[argtypes].signature.return_type
+    sig = restype(callee, address, types.StarArgTuple(argtypes))
+
+    def codegen(context, builder, signature, llargs):
+        values = [builder.extract_value(llargs[2], i) for i in range(len(argtypes))]
+        fnty = context.call_conv.get_function_type(restype, argtypes)
+        fnptr = builder.inttoptr(llargs[1], fnty.as_pointer())
+        status, result = context.call_conv.call_function(builder, fnptr, restype, argtypes, values)
+        with cgutils.if_unlikely(builder, status.is_error):
+            context.call_conv.return_status_propagate(builder, status)
+        return result
+
+    return sig, codegen

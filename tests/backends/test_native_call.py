@@ -1,0 +1,85 @@
+"""Calls through a native entry point: the caller gets the callee's result and exceptions, does not
+compile the callee into itself, and refuses argument types the host did not compile."""
+import re
+
+import numba
+import numpy as np
+import pytest
+from numba.core.errors import TypingError
+
+from pfbench.backends import native_call
+
+
+@numba.njit(cache=False)
+def _scaled(x, i, k):
+    if k < 0:
+        raise ValueError("negative k")
+    return x[i] * k
+
+
+@numba.njit(cache=False)
+def _through_address(address, x, k):
+    s = 0.0
+    for i in range(x.shape[0]):
+        s += native_call.call(_scaled, address, x, i, k)
+    return s
+
+
+def _defines(dispatcher) -> str:
+    return " ".join(re.findall(r"define [^@]*@(\S+)\(", dispatcher.inspect_llvm(dispatcher.signatures[0])))
+
+
+def test_call_through_the_address_gives_the_result_and_the_exception():
+    """Catches: a wrong argument order or return value, a swallowed exception (the status not
+    propagated). That the caller does not compile the callee: the kernel test below."""
+    x = np.arange(50.0)
+    address = native_call.entry_address(_scaled, (numba.typeof(x), numba.int64, numba.float64))
+    assert _through_address(address, x, 2.0) == 2.0 * x.sum()
+    with pytest.raises(ValueError, match="negative k"):
+        _through_address(address, x, -1.0)
+
+
+def test_argument_types_the_host_did_not_compile_are_refused_at_compile_time():
+    """A call site whose types differ from those registered by entry_address (here int64 k) does
+    not compile. Catches: a call through an address compiled for other types."""
+    x = np.arange(5.0)
+    address = native_call.entry_address(_scaled, (numba.typeof(x), numba.int64, numba.float64))
+    with pytest.raises(TypingError, match="did not compile"):
+        _through_address(address, x, 2)
+
+
+def test_the_particle_kernel_driver_does_not_compile_pass_a_again():
+    """The driver calls pass A (the model inlined) through its address: none of pass A's or the
+    model's functions is defined in the driver's code. A model the disk cache cannot hold (defined
+    in executed code) is compiled in memory, so its code can be inspected. Catches: the driver
+    calling ``_pass_a`` directly, which compiles it (and the model) into every driver again."""
+    import pfbench
+    from pfbench.backends.numba_backend import kernel_module
+
+    ns = {}
+    exec("import numpy as np\n"
+         "from pfbench.models import StateSpaceModel\n"
+         "class Drift(StateSpaceModel):\n"
+         "    n_x, n_y, n_noise = 1, 1, 1\n"
+         "    def params(self):\n"
+         "        return (0.5,)\n"
+         "    @staticmethod\n"
+         "    def initial(rng, n, p):\n"
+         "        return rng.normal(0.0, 1.0, (n, 1))\n"
+         "    @staticmethod\n"
+         "    def transition(x, u, t, noise, p):\n"
+         "        return 0.9 * x + p[0] * noise\n"
+         "    @staticmethod\n"
+         "    def log_likelihood(y, x, u, t, p):\n"
+         "        r = y[0] - x[:, 0]\n"
+         "        return -0.5 * r * r\n"
+         "    @staticmethod\n"
+         "    def observe(x, u, t, noise, p):\n"
+         "        return x + noise\n", ns)
+    model = ns["Drift"]()
+    tr = model.simulate(4, seed=0)
+    pfbench.run_filter(model, tr.y, tr.u, method="bootstrap", n_particles=8, backend="numba", seed=0)
+    driver = kernel_module(model, "particle", "systematic").run_group
+    defined = _defines(driver)
+    assert "run_group" in defined
+    assert "_pass_a" not in defined and "transition" not in defined and "log_likelihood" not in defined
