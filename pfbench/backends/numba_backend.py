@@ -308,11 +308,12 @@ def _raised_in_parallel(exc: SystemError) -> BaseException:
 
 def pass_a_types(p, rng, y, u, work) -> tuple:
     """The numba types of the arguments the particle kernel's driver passes to pass A (its call in
-    ``numba_particle._run_group``), from the driver's own arguments: the parameters, a block
-    generator, the rows ``y[t]`` and ``u[t]`` of C-contiguous arrays, the step, the particles of one
-    filter ``xs[k, g]``, the block bounds and noise count, the log-weights ``lw[g]``, the flags and
-    ``-log n``, and the rows of ``fwork``. The driver's compile refuses any other types
-    (:func:`pfbench.backends.native_call.call`)."""
+    ``numba_particle._run_group``), from the driver's own arguments (C-contiguous ``y``, ``u`` and
+    work arrays, so every row it passes is a C array): the parameters, a block generator, ``y[t]``,
+    ``u[t]``, the step, one filter's particles ``xs[k, g]``, the block bounds and noise count, the
+    log-weights ``lw[g]``, three flags with ``-log n``, and the rows ``lam``, ``lam_all``, ``la``
+    of ``fwork``. The driver's compile refuses other types
+    (:func:`pfbench.backends.native_call.caller`)."""
     import numba
 
     xs, lw, fwork = work[0], work[1], work[2]

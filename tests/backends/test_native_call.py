@@ -17,11 +17,14 @@ def _scaled(x, i, k):
     return x[i] * k
 
 
+_call3 = native_call.caller(3)
+
+
 @numba.njit(cache=False)
 def _through_address(address, x, k):
     s = 0.0
     for i in range(x.shape[0]):
-        s += native_call.call(_scaled, address, x, i, k)
+        s += _call3(_scaled, address, x, i, k)
     return s
 
 
