@@ -273,17 +273,6 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
 
 
 # --------------------------------------------------------------------------- compile
-def _listed(value: str, allowed, flag: str) -> list[str]:
-    """``"a,b"`` -> ["a", "b"], each one of ``allowed`` (None: any); a one-line error otherwise."""
-    items = [v.strip() for v in str(value).split(",")]
-    if not all(items):
-        raise click.BadParameter(f"{value!r} has an empty item; give values such as a,b", param_hint=f"'{flag}'")
-    bad = [v for v in items if allowed is not None and v not in allowed]
-    if bad:
-        raise click.BadParameter(f"{bad[0]!r} is not one of {', '.join(allowed)}", param_hint=f"'{flag}'")
-    return items
-
-
 @main.command("compile")
 @click.option("--model", "model_names", default=None, metavar="MODEL[,MODEL...]",
               help="Model specs as for `run`, comma-separated (default: every registered model).")
@@ -309,12 +298,14 @@ def compile_cmd(model_names, methods, schemes, dtypes, all_threads, jobs, as_jso
     from .backends.cache import check_cache_dir
     from .precompile import compile_all, targets, text
 
-    specs = _listed(model_names, None, "--model") if model_names is not None else models.names()
+    from .options import comma_list
+
+    specs = comma_list(model_names, "--model") if model_names is not None else models.names()
     for spec in specs:  # one-line errors for bad names before any process starts
         name, kw = models.parse_spec(spec)
         models.get(name, **kw)
-    todo = targets(specs, _listed(methods, METHODS, "--method"), _listed(schemes, SCHEMES, "--resampling"),
-                   _listed(dtypes, DTYPES, "--dtype"), all_threads)
+    todo = targets(specs, comma_list(methods, "--method", METHODS), comma_list(schemes, "--resampling", SCHEMES),
+                   comma_list(dtypes, "--dtype", DTYPES), all_threads)
     cache = check_cache_dir()  # an unusable cache is one line before any process starts
     rows = compile_all(todo, jobs=jobs, progress=not as_json)
     if as_json:

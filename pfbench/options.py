@@ -126,3 +126,23 @@ def typed(value, kind, what: str):
         name = _TYPE_NAMES.get(kind, getattr(kind, "__name__", str(kind)))
         raise InputError(f"{what}: expected {name}, got {json.dumps(value, default=str)}")
     return value
+
+
+def comma_list(value, flag: str, allowed: Iterable[str] | None = None) -> list[str]:
+    """``"a,b"`` (command line) or ``["a", "b"]`` / ``"a"`` (grid file) -> ``["a", "b"]``, items
+    stripped: an empty item (two commas in a row, a comma at either end), an empty list or, with
+    ``allowed``, an item not in it is an InputError naming ``flag`` (the one way every
+    comma-separated CLI option is split)."""
+    items = [str(v).strip() for v in value] if isinstance(value, (list, tuple)) else \
+        [v.strip() for v in str(value).split(",")]
+    if items == [""] or not items:
+        raise InputError(f"{flag} is empty")
+    if "" in items:
+        raise InputError(f"{flag} {value!r}: an empty item (two commas in a row, or a comma at either end); "
+                         "give values such as a,b")
+    if allowed is not None:
+        allowed = tuple(allowed)
+        for v in items:
+            if v not in allowed:
+                raise InputError(f"{flag} {v!r} is not one of {', '.join(allowed)}{did_you_mean(v, allowed)}")
+    return items

@@ -120,10 +120,9 @@ def compile_all(todo: list[Target], jobs: int | None = None, progress: bool = Tr
             from concurrent.futures.process import BrokenProcessPool
 
             from .errors import PfbenchError
-            from .procs import process_pool, stop_pool
+            from .procs import worker_pool
 
-            pool = process_pool(jobs)
-            try:
+            with worker_pool(jobs) as pool:  # Ctrl-C or an error ends the compiles under way at once
                 futures = {pool.submit(_compile_group, g): g for g in groups.values()}
                 for fut in as_completed(futures):
                     try:
@@ -134,10 +133,6 @@ def compile_all(todo: list[Target], jobs: int | None = None, progress: bool = Tr
                     for t, row in zip(futures[fut], rows):
                         done[t] = row
                     bar.update(len(futures[fut]))
-            except BaseException:  # Ctrl-C or an error: end now, not after the compiles under way
-                stop_pool(pool)
-                raise
-            pool.shutdown(wait=True)
     return [done[t] for t in todo]
 
 

@@ -80,16 +80,24 @@ def process_pool(max_workers: int, *, mp_context=None, initializer: Callable | N
                                initializer=_init_worker, initargs=(os.getpid(), initializer, initargs))
 
 
-def stop_pool(pool) -> None:
-    """End a :func:`process_pool` now (an interrupt or an error): kill its live workers and drop the
-    queued tasks, instead of waiting for the running ones to finish. SIGKILL, not SIGTERM: a worker
-    holds SIGTERM back while numba compiles (:mod:`pfbench.backends.interrupts`), which protects
-    a process that goes on, not one that ends; what a killed task was writing is abandoned
-    whole (pfbench's outputs and compile caches are written to a temporary name and renamed)."""
-    for p in list((getattr(pool, "_processes", None) or {}).values()):
-        if p.is_alive():
-            p.kill()
-    pool.shutdown(wait=False, cancel_futures=True)
+@contextlib.contextmanager
+def worker_pool(max_workers: int, **kwargs) -> Iterator:
+    """A :func:`process_pool` for a ``with`` block: left normally, it waits for its tasks; left by an
+    exception (Ctrl-C, SIGTERM turned into one, an error) it kills its live workers and drops the
+    queued tasks at once instead of waiting for the running ones. SIGKILL, not SIGTERM: a worker
+    holds SIGTERM back while numba compiles (:mod:`pfbench.backends.interrupts`), which protects a
+    process that goes on, not one that ends; what a killed task was writing is abandoned whole
+    (pfbench's outputs and compile caches are written to a temporary name and renamed)."""
+    pool = process_pool(max_workers, **kwargs)
+    try:
+        yield pool
+    except BaseException:
+        for p in list((getattr(pool, "_processes", None) or {}).values()):
+            if p.is_alive():
+                p.kill()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def lock_path(output) -> Path:

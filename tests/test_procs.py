@@ -1,8 +1,10 @@
-"""Worker pools: stopping one ends its workers now."""
+"""Worker pools: leaving one by an exception ends its workers now."""
 import signal
 import time
 
-from pfbench.procs import process_pool, stop_pool
+import pytest
+
+from pfbench.procs import worker_pool
 
 
 def _hold_sigterm():
@@ -14,23 +16,35 @@ def _started(path):
     time.sleep(120)
 
 
-def test_stop_pool_ends_a_worker_that_holds_sigterm_back(tmp_path):
-    """A worker that holds SIGTERM back (numba compiling: pfbench.backends.interrupts) is ended by
-    stop_pool at once, its queued tasks dropped. Catches: SIGTERM (terminate) instead of SIGKILL,
-    a shutdown that waits for the running task (which sleeps two minutes)."""
-    pool = process_pool(1, initializer=_hold_sigterm)
+def _square(v):
+    return v * v
+
+
+def test_an_exception_ends_a_worker_that_holds_sigterm_back(tmp_path):
+    """A worker that holds SIGTERM back (numba compiling: pfbench.backends.interrupts) is ended at
+    once when the block is left by an exception (Ctrl-C), its queued tasks dropped. Catches:
+    SIGTERM (terminate) instead of SIGKILL, a shutdown that waits for the running task (which
+    sleeps two minutes: the test would take that long)."""
     mark = tmp_path / "started"
-    running = pool.submit(_started, str(mark))
-    queued = pool.submit(_started, str(tmp_path / "never"))
-    for _ in range(600):  # the worker starts (bounded wait)
-        if mark.exists():
-            break
-        time.sleep(0.05)
-    assert mark.exists()
-    workers = list(pool._processes.values())
-    stop_pool(pool)
+    with pytest.raises(KeyboardInterrupt):
+        with worker_pool(1, initializer=_hold_sigterm) as pool:
+            running = pool.submit(_started, str(mark))
+            queued = pool.submit(_started, str(tmp_path / "never"))
+            for _ in range(600):  # the worker starts (bounded wait)
+                if mark.exists():
+                    break
+                time.sleep(0.05)
+            assert mark.exists()
+            workers = list(pool._processes.values())
+            raise KeyboardInterrupt
     for p in workers:
         p.join(timeout=30)
         assert not p.is_alive()
-    assert queued.done() and not (tmp_path / "never").exists()  # cancelled, or failed as broken
-    assert running.done()
+    assert running.done() and queued.done() and not (tmp_path / "never").exists()
+
+
+def test_a_block_left_normally_waits_for_the_results():
+    """Catches: killing the workers on a normal exit too."""
+    with worker_pool(2) as pool:
+        futures = [pool.submit(_square, v) for v in range(6)]
+    assert [f.result() for f in futures] == [v * v for v in range(6)]

@@ -15,33 +15,22 @@ import click
 
 from ..errors import DataError, InputError
 from ..filters.methods import METHODS
-from ..options import check_known, parse_key_values, typed
+from ..options import check_known, comma_list, parse_key_values, typed
 
 
 def _ints(value, name: str) -> list[int]:
     """``"100,200"`` (command line) or ``[100, 200]`` / ``100`` (grid file) -> [100, 200]."""
     if isinstance(value, (list, tuple)):
         vals = [typed(v, int, name) for v in value]
-    else:
-        items = str(value).replace(" ", "").split(",")
-        if "" in items and items != [""]:
-            raise InputError(f"{name} {value!r}: an empty item (two commas in a row, or a comma at "
-                             "either end); give values such as 100,200")
-        vals = [typed(v, int, name) for v in items if v]
-    if not vals:
-        raise InputError(f"{name} is empty")
-    return vals
+        if not vals:
+            raise InputError(f"{name} is empty")
+        return vals
+    return [typed(v, int, name) for v in comma_list(value, name)]
 
 
 def _check_grid_keys(opts: dict, where: str) -> None:
     """Unknown grid-file keys: an error listing the valid keys, with "did you mean" if one is close."""
     check_known(opts, GRID_KEYS, "a grid-file key", flag=where)
-
-
-def _names(value) -> list[str]:
-    """``"multipdf,mpf"`` or ``["multipdf", "mpf"]`` -> ["multipdf", "mpf"]."""
-    items = value if isinstance(value, (list, tuple)) else str(value).split(",")
-    return [str(m).strip() for m in items if str(m).strip()]
 
 
 def _grid_file(path: str) -> dict:
@@ -128,7 +117,7 @@ def _do_run(kw: dict) -> None:
         if k in params and params[k] != v:
             raise InputError(f"model parameter {k} is given twice ({params[k]!r} and {v!r})")
         params[k] = v
-    spec = make_spec(opts["model"], params=params, methods=_names(opts.get("method", "multipdf")),
+    spec = make_spec(opts["model"], params=params, methods=comma_list(opts.get("method", "multipdf"), "--method"),
                      particles=_ints(opts.get("particles", "100"), "--particles"),
                      filters=_ints(opts.get("filters", "1"), "--filters"),
                      runs=typed(opts.get("runs", 10), int, "--runs"),

@@ -9,7 +9,7 @@ Executors
 
 At most ``2 x workers`` work units are in flight; Ctrl-C or SIGTERM stops the sweep after
 terminating the workers, keeping every unit already written; re-running resumes. Local workers die
-with the sweep, also after ``kill -9`` (:func:`pfbench.procs.process_pool`).
+with the sweep, also after ``kill -9`` (:func:`pfbench.procs.worker_pool`).
 
 Before any work: ``workers`` must be >= 1 (``None``: all cores), the store must be ``.jsonl`` or
 ``.parquet``, the largest task must fit in memory once per worker (:func:`check_sweep_memory`),
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError, PfbenchError
-from ..procs import exclusive_lock, process_pool, stop_pool
+from ..procs import exclusive_lock, worker_pool
 from ..resources import path_error
 from .core import n_tasks, run_chunk, task_key, warm_up
 from .store import Store, check_store_name, export_parquet
@@ -183,10 +183,9 @@ def _run_local(spec, units, workers, done):
     from concurrent.futures import FIRST_COMPLETED, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    pool = process_pool(workers, mp_context=mp.get_context("spawn"), initializer=warm_up, initargs=(spec,))
     todo = list(reversed(units))
     inflight = set()
-    try:
+    with worker_pool(workers, mp_context=mp.get_context("spawn"), initializer=warm_up, initargs=(spec,)) as pool:
         while todo or inflight:
             while todo and len(inflight) < 2 * workers:
                 r, cis = todo.pop()
@@ -203,10 +202,6 @@ def _run_local(spec, units, workers, done):
                     raise PfbenchError("a sweep worker ran out of memory; finished tasks are saved; use "
                                        "fewer --workers or smaller --particles, then re-run to resume") from None
                 done(recs, wall, who)
-    except BaseException:
-        stop_pool(pool)
-        raise
-    pool.shutdown(wait=True)
 
 
 def _run_dask(spec, units, workers, scheduler, done):

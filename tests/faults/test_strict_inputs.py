@@ -72,3 +72,19 @@ def test_typed_rejects_non_finite_numbers():
     with pytest.raises(InputError, match="--option x=nan: expected a finite number"):
         typed(float("nan"), float, "--option x=nan")
     assert typed("1e3", float, "x") == 1000.0
+
+
+def test_comma_lists_are_split_one_way_for_every_flag():
+    """`pfbench compile` and `pfbench sweep` split comma-separated values with one parser: items
+    stripped, a list from a grid file taken as it is, an empty item, an empty value or an item
+    outside the choices is one InputError naming the flag (with "did you mean"). Catches: empty
+    items dropped silently (as the sweep's method list did), an unchecked choice."""
+    from pfbench.options import comma_list
+
+    assert comma_list(" bootstrap, sir ", "--method") == ["bootstrap", "sir"]
+    assert comma_list(["mpf", "sir"], "--method", ("mpf", "sir")) == ["mpf", "sir"]
+    for bad, words in (("a,,b", "empty item"), ("a,", "empty item"), ("", "is empty"), ([], "is empty")):
+        with pytest.raises(InputError, match=words):
+            comma_list(bad, "--method")
+    with pytest.raises(InputError, match="--method 'bootstrp' is not one of.*did you mean bootstrap"):
+        comma_list("bootstrp", "--method", ("bootstrap", "sir"))

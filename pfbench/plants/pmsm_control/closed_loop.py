@@ -20,7 +20,7 @@ The SMC is the reduced PMSM model + the generic guided filter (:mod:`.smc`), ste
 loop. The SMC run is one compiled numba function (``backend="numba"``, calling the compiled guided
 kernel) or the same code in plain Python (``backend="numpy"``, the NumPy guided step; equal to
 round-off). The EKF run (eq. 4.26 Jacobian, helpers of :mod:`pfbench.kalman`) is Python only.
-Batches of runs go to worker processes that die with their parent (:func:`pfbench.procs.process_pool`).
+Batches of runs go to worker processes that die with their parent (:func:`pfbench.procs.worker_pool`).
 """
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ from ...backends.cache import njit
 from ...errors import PfbenchError
 from ...filters.inputs import ess_count
 from ...models.pmsm import Q_THETA_FILTER, Pmsm, jacobian, pmsm_step, wrap_angle
-from ...procs import process_pool
+from ...procs import worker_pool
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
@@ -284,7 +284,7 @@ def run_batch(cfg: LoopConfig, n_runs: int, seed: int = 0, workers: int | None =
         for rr in (progress(it, total=len(jobs)) if progress else it):
             rows.extend(rr)
     else:
-        with process_pool(workers) as pool:  # workers die with this process (also on kill -9)
+        with worker_pool(workers) as pool:  # workers die with this process (also on kill -9 or Ctrl-C)
             it = pool.map(_batch_worker, jobs)
             for rr in (progress(it, total=len(jobs)) if progress else it):
                 rows.extend(rr)
