@@ -60,8 +60,12 @@ def die_with_parent(parent_pid: int) -> None:
                      daemon=True).start()
 
 
-def _init_worker(parent_pid: int, initializer: Callable | None, initargs: tuple) -> None:
+def _init_worker(parent_pid: int, shared: bool, initializer: Callable | None, initargs: tuple) -> None:
     die_with_parent(parent_pid)
+    if shared:  # the pool's workers already use the cores: no compile helpers on top of them
+        from .backends import compile_helper
+
+        compile_helper.disable()
     if initializer is not None:
         initializer(*initargs)
 
@@ -72,12 +76,14 @@ def process_pool(max_workers: int, *, mp_context=None, initializer: Callable | N
 
     Same arguments as the executor's; ``initializer(*initargs)`` runs after the worker has
     arranged to die with its parent. Create the pool from the main thread: the parent-death
-    signal fires when the *thread* that started the worker ends.
+    signal fires when the *thread* that started the worker ends. The workers of a pool of two or
+    more start no compile helpers (:mod:`pfbench.backends.compile_helper`): the pool already
+    spreads over the cores.
     """
     from concurrent.futures import ProcessPoolExecutor
 
-    return ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context,
-                               initializer=_init_worker, initargs=(os.getpid(), initializer, initargs))
+    return ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context, initializer=_init_worker,
+                               initargs=(os.getpid(), max_workers > 1, initializer, initargs))
 
 
 @contextlib.contextmanager

@@ -266,12 +266,15 @@ def test_startup_cases_use_models_that_declare_the_structure():
 
 
 def test_startup_cold_is_empty_cache_warm_is_the_filled_one(monkeypatch, tmp_path):
-    """With a stand-in command: the cold run sees empty cache dirs, the warm runs the one it filled,
-    the temporary caches are removed, a failing command is reported (catches warm runs on a fresh
-    cache, a cold run on a used one, a leaked cache, a swallowed error)."""
+    """With a stand-in command: the cold runs (one-process, then with the compile helper) see empty
+    cache dirs of their own, the warm runs the one the helper's cold run filled, the temporary
+    caches are removed, a failing command is reported (catches warm runs on a fresh cache, a cold
+    run on a used one, a one-process run with the helper on, a leaked cache, a swallowed error)."""
     log = tmp_path / "log"
+    monkeypatch.delenv("PFBENCH_COMPILE_HELPER", raising=False)
     script = ("import os, sys; c = os.environ['PFBENCH_CACHE_DIR']; n = os.environ['NUMBA_CACHE_DIR'];"
-              "state = 'filled' if os.path.exists(c) else 'empty';"
+              "state = ('filled' if os.path.exists(c) else 'empty') + "
+              "('-1proc' if os.environ.get('PFBENCH_COMPILE_HELPER') == '0' else '');"
               "os.makedirs(c, exist_ok=True); os.makedirs(n, exist_ok=True);"
               f"open({str(log)!r}, 'a').write(state + ' ' + c + chr(10));"
               "bad = '--model' in sys.argv and sys.argv[sys.argv.index('--model') + 1] == 'bad';"
@@ -280,11 +283,13 @@ def test_startup_cold_is_empty_cache_warm_is_the_filled_one(monkeypatch, tmp_pat
     res = startup.run_startup(repeats=2, cold_repeats=1, progress=False,
                               cases=(("bootstrap", "ob1", ()), ("kalman", "bad", ())))
     lines = [ln.split(" ", 1) for ln in log.read_text().splitlines()]
-    assert [s for s, _ in lines[:3]] == ["empty", "filled", "filled"]
-    assert len({c for _, c in lines[:3]}) == 1  # warm runs on the cache the cold run filled
+    assert [s for s, _ in lines[:4]] == ["empty-1proc", "empty", "filled", "filled"]
+    assert len({c for _, c in lines[1:4]}) == 1  # warm runs on the cache the cold run filled
+    assert lines[0][1] != lines[1][1]
     assert not any(os.path.exists(c) for _, c in lines)
     good, bad = res["cases"]
     assert len(good["warm_runs_s"]) == 2 and good["error"] is None
+    assert len(good["cold_one_process_runs_s"]) == 1
     assert good["warm_s"] == pytest.approx(float(np.median(good["warm_runs_s"])))
     assert good["compile_s"] == pytest.approx(good["cold_s"] - good["warm_s"])
     assert bad["cold_s"] is None and "boom" in bad["error"]

@@ -49,3 +49,20 @@ def test_a_block_left_normally_waits_for_the_results():
     with worker_pool(2) as pool:
         futures = [pool.submit(_square, v) for v in range(6)]
     assert [f.result() for f in futures] == [v * v for v in range(6)]
+
+
+def _helper_allowed(_):
+    import os
+
+    return os.environ.get("PFBENCH_COMPILE_HELPER", "1") != "0"
+
+
+def test_workers_of_a_shared_pool_start_no_compile_helpers(monkeypatch):
+    """A pool of two or more already spreads over the cores: its workers start no compile helpers
+    (pfbench.backends.compile_helper) on top; a one-worker pool may. Catches: helpers in every
+    sweep worker (twice the processes on the cores while kernels compile)."""
+    monkeypatch.delenv("PFBENCH_COMPILE_HELPER", raising=False)
+    with worker_pool(2) as pool:
+        assert list(pool.map(_helper_allowed, range(4))) == [False] * 4
+    with worker_pool(1) as pool:
+        assert list(pool.map(_helper_allowed, range(2))) == [True] * 2

@@ -316,6 +316,12 @@ def _healing_cache_class():
                 self._cache_file._discard(path, exc)
                 return None
 
+        def has_entry(self, sig, target_context) -> bool:
+            """Whether the index holds an entry for ``sig`` (its data is checked when it is
+            loaded: a damaged entry is then recompiled)."""
+            return bool(self._enabled) and \
+                self._index_key(sig, target_context.codegen()) in self._cache_file._load_index()
+
         def save_overload(self, sig, data):
             try:
                 super().save_overload(sig, data)

@@ -14,7 +14,8 @@ The host compiles the callee for exactly the argument types of the call site and
 address (:func:`entry_address` registers those types); the call site, when it is compiled,
 refuses argument types that the host did not register (a ``TypingError``), so a host that
 computes them differently from the call site fails at compile time instead of calling code
-compiled for other types.
+compiled for other types. A host may also :func:`declare` the signature first and compile the
+call site before the callee (the callee compiled in another process meanwhile).
 
 Use: ``call17 = caller(17)`` at module level, then ``call17(f, address, a_1, ..., a_17)`` in
 compiled code.
@@ -30,22 +31,35 @@ from numba.extending import intrinsic
 _LOCK = threading.Lock()
 #: (dispatcher, argument types) -> native entry address
 _ADDRESSES: dict[tuple[object, tuple], int] = {}
-#: dispatcher -> the argument types the host registered for it
-_REGISTERED: dict[object, set[tuple]] = {}
+#: dispatcher -> {argument types the host registered for it: the return type}
+_REGISTERED: dict[object, dict[tuple, object]] = {}
+
+
+def declare(dispatcher, argtypes: tuple, restype) -> None:
+    """Register ``argtypes`` (numba types) as a signature a call site may use, returning ``restype``,
+    before ``dispatcher`` is compiled for it: a call site can then be compiled while the callee is
+    compiled elsewhere (:mod:`pfbench.backends.compile_helper`). :func:`entry_address` checks the
+    compiled return type against ``restype``."""
+    with _LOCK:
+        _REGISTERED.setdefault(dispatcher, {})[tuple(argtypes)] = restype
 
 
 def entry_address(dispatcher, argtypes: tuple) -> int:
     """Compile (or load from the disk cache) ``dispatcher`` for ``argtypes`` (numba types) and return
-    the address of its native entry point, for :func:`call`; registers ``argtypes`` as a signature
-    a call site may use."""
+    the address of its native entry point, for a :func:`caller`; registers ``argtypes`` as a
+    signature a call site may use. A return type other than the one :func:`declare` registered is
+    a TypeError (a call site compiled for it would misread the result)."""
     argtypes = tuple(argtypes)
     key = (dispatcher, argtypes)
     with _LOCK:
         if key not in _ADDRESSES:
             dispatcher.compile(argtypes)
             cres = dispatcher.overloads[argtypes]
+            restype = cres.signature.return_type
+            declared = _REGISTERED.setdefault(dispatcher, {}).setdefault(argtypes, restype)
+            if declared != restype:
+                raise TypeError(f"{dispatcher.py_func.__qualname__} returns {restype}, declared {declared}")
             _ADDRESSES[key] = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
-            _REGISTERED.setdefault(dispatcher, set()).add(argtypes)
         return _ADDRESSES[key]
 
 
@@ -54,10 +68,10 @@ def _typed(callee, address, argtypes: tuple):
     through ``address``; None (no match) for other argument kinds."""
     if not isinstance(callee, types.Dispatcher) or not isinstance(address, types.Integer):
         return None
-    if argtypes not in _REGISTERED.get(callee.dispatcher, ()):
+    restype = _REGISTERED.get(callee.dispatcher, {}).get(argtypes)
+    if restype is None:
         raise TypingError(f"native call of {callee.dispatcher.py_func.__qualname__} with argument types "
-                          f"{argtypes} that the host did not compile (entry_address)")
-    restype = callee.dispatcher.overloads[argtypes].signature.return_type
+                          f"{argtypes} that the host did not compile (entry_address) or declare")
 
     def codegen(context, builder, signature, llargs):
         fnty = context.call_conv.get_function_type(restype, argtypes)

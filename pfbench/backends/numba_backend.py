@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import write_text
-from . import cache, native_call, pcg64
+from . import cache, compile_helper, native_call, pcg64
 
 _HERE = Path(__file__).resolve().parent
 #: family -> (kernel module file, the model functions it calls as ``_<name>``)
@@ -66,7 +66,9 @@ def cache_dir() -> Path:
     return cache.check_cache_dir() / "kernels"
 
 
-def _model_class(module: str, qualname: str) -> type:
+def model_class_by_name(module: str, qualname: str) -> type:
+    """A model class from its module and qualified name (a kernel module's footer, a compile
+    helper process)."""
     obj = _CLASSES.get((module, qualname))
     if obj is None:  # a process that imports the kernel module directly
         obj = importlib.import_module(module)
@@ -77,7 +79,7 @@ def _model_class(module: str, qualname: str) -> type:
 
 def model_function(module: str, qualname: str, name: str):
     """The njit-compiled staticmethod ``name`` of a model class (compiled once per process)."""
-    cls = _model_class(module, qualname)
+    cls = model_class_by_name(module, qualname)
     key = (cls, name)
     with _LOCK:
         if key not in _FUNCS:
@@ -92,7 +94,7 @@ def model_function(module: str, qualname: str, name: str):
 
 def scheme_free_function(family: str, module: str, qualname: str, f_tiles: bool, name: str):
     """Function ``name`` of the any-scheme kernel module of a model class (:data:`SCHEME_FREE`)."""
-    return getattr(kernel_module(_model_class(module, qualname), family, None, f_tiles=f_tiles), name)
+    return getattr(kernel_module(model_class_by_name(module, qualname), family, None, f_tiles=f_tiles), name)
 
 
 def disk_cacheable(cls: type) -> bool:
@@ -277,24 +279,47 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     mod = kernel_module(model, "particle", scheme)
     draw_initial(model.kernel_functions()["initial"], p, rng, x)  # in NumPy, as the NumPy backend
     work = work_arrays(x, bounds.shape[0] - 1)
-    address = native_call.entry_address(mod._pass_a, pass_a_types(p, rng, y, u, work))
-    args = (p, rng, brngs, y, u, x, int(model.n_noise), int(method),
+    args = [p, rng, brngs, y, u, x, int(model.n_noise), int(method),
             int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
-            *work, address)
+            *work, 0]
+    parallel = len(brngs) > 1 and n_threads != 1
+    driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
-        if len(brngs) > 1 and n_threads != 1:
+        args[-1] = _pass_a_address(model, mod, driver, args, pass_a_types(p, rng, y, u, work))
+        if parallel:
             import numba
 
             k = min(int(n_threads or numba.config.NUMBA_NUM_THREADS), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
                 numba.set_num_threads(k)
                 try:
-                    mod.run_group_parallel(*args)
+                    driver(*args)
                 except SystemError as exc:
                     raise _raised_in_parallel(exc) from None
         else:
-            mod.run_group(*args)
+            driver(*args)
+
+
+def _pass_a_address(model, mod, driver, args: list, argtypes: tuple) -> int:
+    """The address of pass A compiled for ``argtypes``; when it and the driver are both cold, pass A
+    is compiled by a helper process while this one compiles the driver
+    (:mod:`pfbench.backends.compile_helper`)."""
+    import numba
+
+    with _LOCK:  # threads of one process start one helper, not one each
+        native_call.declare(mod._pass_a, argtypes, numba.types.float64)  # pass A returns its max
+        if compile_helper.enabled() and compile_helper.cold(mod._pass_a, argtypes):
+            sig = tuple(driver.typeof_pyval(a) for a in args)
+            if compile_helper.cold(driver, sig):
+                helper = compile_helper.start(type(model), "particle", column_major_tiles(model), "_pass_a",
+                                              argtypes)
+                if helper is not None:
+                    try:
+                        driver.compile(sig)
+                    finally:
+                        helper.finish()
+        return native_call.entry_address(mod._pass_a, argtypes)
 
 
 def _raised_in_parallel(exc: SystemError) -> BaseException:

@@ -32,7 +32,9 @@ Pass A inlines the model; it does not depend on the scheme, so a scheme's module
 :mod:`pfbench.backends.numba_backend`), and the schemes of a model share one compilation of it.
 The driver calls pass A through its native entry point (:mod:`pfbench.backends.native_call`), so
 numba does not compile pass A and the model into the driver again (passes B and C stay direct
-calls: through their addresses they cost about 0.5 ns per particle-step at N_p = 1000).
+calls: through their addresses they cost about 0.5 ns per particle-step at N_p = 1000). So the
+driver compiles without pass A's code, and a cold kernel compiles pass A in a helper process on
+a second core meanwhile (:mod:`pfbench.backends.compile_helper`).
 
 Stream blocks and threads
 -------------------------

@@ -7,6 +7,9 @@ filtering):
 * **cold**: with ``NUMBA_CACHE_DIR`` and ``PFBENCH_CACHE_DIR`` pointing at a fresh, empty
   temporary directory (a first run after installation; Python's own bytecode cache and the
   operating system's file cache are as they are);
+* **cold, compiled in one process**: the same with ``PFBENCH_COMPILE_HELPER=0``, each right after
+  a cold run (what compiling pass A in a helper process on a second core saves,
+  :mod:`pfbench.backends.compile_helper`; the same when the helper is off or one core is usable);
 * **warm**: the same command again with the cache that the cold run filled (median of
   ``repeats`` runs).
 
@@ -47,8 +50,12 @@ def command(method: str, model: str, extra=()) -> list[str]:
             "--particles", str(PARTICLES), *extra, "--json"]
 
 
-def _timed(cmd: list[str], cache: Path) -> tuple[float, str | None]:
+def _timed(cmd: list[str], cache: Path, helper: bool = True) -> tuple[float, str | None]:
+    from ..backends import compile_helper
+
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache / "numba"), PFBENCH_CACHE_DIR=str(cache / "pfbench"))
+    if not helper:
+        env[compile_helper.ENV] = "0"
     t0 = time.perf_counter()
     try:
         r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1800)
@@ -69,15 +76,23 @@ def run_startup(repeats: int = 3, cold_repeats: int = 1, cases=CASES, progress: 
 
     stamp0 = _source_stamp()
     out = []
-    bar = tqdm(total=len(cases) * (cold_repeats + repeats), desc="bench --startup", disable=not progress,
+    bar = tqdm(total=len(cases) * (2 * cold_repeats + repeats), desc="bench --startup", disable=not progress,
                file=sys.stderr, leave=False)
     for method, model, extra in cases:
         cmd = command(method, model, extra)
         stamp = _source_stamp()
-        cold, warm, errors = [], [], []
+        cold, serial, warm, errors = [], [], [], []
         for i in range(max(int(cold_repeats), 1)):
             tmp = Path(tempfile.mkdtemp(prefix="pfbench-startup-"))
             try:
+                bar.set_postfix_str(f"{method} cold, one process")
+                one = Path(tempfile.mkdtemp(prefix="pfbench-startup-"))
+                try:
+                    dt, err = _timed(cmd, one, helper=False)
+                finally:
+                    shutil.rmtree(one, ignore_errors=True)
+                bar.update()
+                (errors.append(err) if err else serial.append(dt))
                 bar.set_postfix_str(f"{method} cold")
                 dt, err = _timed(cmd, tmp)
                 bar.update()
@@ -95,14 +110,18 @@ def run_startup(repeats: int = 3, cold_repeats: int = 1, cases=CASES, progress: 
                 shutil.rmtree(tmp, ignore_errors=True)
         med = lambda xs: statistics.median(xs) if xs else None  # noqa: E731
         rec = {"method": method, "model": model, "command": " ".join(["pfbench", *cmd[len(pfbench_command()):]]),
-               "cold_s": med(cold), "cold_runs_s": cold, "warm_s": med(warm), "warm_runs_s": warm,
+               "cold_s": med(cold), "cold_runs_s": cold, "cold_one_process_s": med(serial),
+               "cold_one_process_runs_s": serial, "warm_s": med(warm), "warm_runs_s": warm,
                "error": errors[0] if errors else None, "package_changed": _source_stamp() != stamp}
         rec["compile_s"] = rec["cold_s"] - rec["warm_s"] if cold and warm else None
         out.append(rec)
     bar.close()
     targets = [check("cold_start_s", r["cold_s"], label=f"cold start, {r['method']} on {r['model']}")
                for r in out]
+    from ..backends import compile_helper
+
     return {"kind": "bench_startup", "steps": STEPS, "particles": PARTICLES, "repeats": repeats,
+            "compile_helper": compile_helper.enabled(), "usable_cores": compile_helper.usable_cores(),
             "cold_repeats": cold_repeats, "cases": out,
             "package_changed": _source_stamp() != stamp0 or any(r["package_changed"] for r in out),
             "targets": targets}
@@ -127,10 +146,10 @@ def _source_stamp() -> str:
 def text(res: dict) -> list[str]:
     from .report import fmt
 
-    out = [f"{'method':>10} {'model':>16} {'cold s':>8} {'warm s':>8} {'compile s':>10}"]
+    out = [f"{'method':>10} {'model':>16} {'cold s':>8} {'1 proc s':>8} {'warm s':>8} {'compile s':>10}"]
     f = lambda v: f"{v:>8.2f}" if v is not None else f"{'-':>8}"  # noqa: E731
     for r in res["cases"]:
-        line = (f"{r['method']:>10} {r['model']:>16} {f(r['cold_s'])} {f(r['warm_s'])} "
+        line = (f"{r['method']:>10} {r['model']:>16} {f(r['cold_s'])} {f(r.get('cold_one_process_s'))} {f(r['warm_s'])} "
                 f"{f(r['compile_s']):>10}")
         if r["error"]:
             line += f"  error: {r['error']}"
@@ -138,7 +157,9 @@ def text(res: dict) -> list[str]:
             line += "  (package source changed meanwhile)"
         out.append(line)
     out.append(f"(`pfbench run ... --steps {res['steps']} --particles {res['particles']}` as a subprocess, "
-               f"wall time; cold = empty NUMBA_CACHE_DIR and PFBENCH_CACHE_DIR, warm = median of "
+               f"wall time; cold = empty NUMBA_CACHE_DIR and PFBENCH_CACHE_DIR, with a compile helper "
+               f"process {'on' if res.get('compile_helper') else 'OFF'} ({res.get('usable_cores', '?')} usable "
+               f"cores); 1 proc = cold with PFBENCH_COMPILE_HELPER=0; warm = median of "
                f"{res['repeats']} reruns on the filled cache; compile = cold - warm)")
     out.append("(`pfbench compile`, which `make all` runs for every model's default run, pays the compile "
                "ahead: a first run after it is a warm start)")

@@ -86,3 +86,33 @@ def test_the_particle_kernel_driver_does_not_compile_pass_a_again():
     defined = _defines(driver)
     assert "run_group" in defined
     assert "_pass_a" not in defined and "transition" not in defined and "log_likelihood" not in defined
+
+
+def test_a_declared_signature_lets_the_call_site_compile_before_the_callee():
+    """The host may compile the call site before the callee (a compile helper builds the callee
+    meanwhile); the call then works once the callee is compiled. Catches: typing a call site from
+    the callee's compiled overloads (it would fail here), and a declared return type that the
+    compiled one contradicts (it would misread the result)."""
+    @numba.njit(cache=False)
+    def later(x, i, k):
+        return x[i] + k
+
+    x = np.arange(4.0)
+    argtypes = (numba.typeof(x), numba.int64, numba.float64)
+    native_call.declare(later, argtypes, numba.float64)
+
+    @numba.njit(cache=False)
+    def site(address, x, k):
+        return _call3(later, address, x, 1, k)
+
+    site.compile((numba.int64, numba.typeof(x), numba.float64))
+    assert not later.overloads  # the call site compiled without the callee
+    assert site(native_call.entry_address(later, argtypes), x, 0.5) == 1.5
+
+    @numba.njit(cache=False)
+    def wrong(x, i, k):
+        return i
+
+    native_call.declare(wrong, argtypes, numba.float64)
+    with pytest.raises(TypeError, match="returns int64, declared float64"):
+        native_call.entry_address(wrong, argtypes)

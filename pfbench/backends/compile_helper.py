@@ -1,0 +1,123 @@
+"""A cold kernel compiled on two cores: pass A in a helper process, the driver here.
+
+A particle kernel that is in no cache is two compiles that do not need each other: pass A (the
+draws and the model's functions, inlined) and the driver with passes B and C. The driver calls
+pass A through its native entry point (:mod:`pfbench.backends.native_call`), so compiling it
+needs pass A's signature, not its code. numba compiles one function at a time per process (one
+global compiler lock), so the two run one after the other in one process: about 3.0 s and 3.6 s
+for Ob1 (measured with numba's event recorder, quiet machine).
+
+With two or more usable cores, when both are missing from the disk cache, :func:`start` runs
+``python -m pfbench.backends.compile_helper`` with pass A's identity (the model class by module
+and name, the kernel family, the tile layout, the argument types), which compiles pass A into
+the same disk cache (:mod:`pfbench.backends.cache`: one cache per installation) while this
+process compiles the driver; :func:`finish` waits for it, and this process then loads pass A
+from disk.
+
+The helper only ever saves time. Whatever goes wrong there (the model's module cannot be
+imported in a new process, a compile error, a crash, a kill) leaves no cache entry, and this
+process compiles pass A itself, raising any error exactly as it would without a helper. A
+damaged entry the helper might leave is healed by the cache like any other. The helper dies with
+this process (:func:`pfbench.procs.die_with_parent`) and is killed if this process stops waiting
+(Ctrl-C).
+
+Not used: with one usable core (no second core to win), in pfbench's pool workers (the pool
+already uses every core; :func:`pfbench.procs.process_pool`), for a model that numba cannot
+cache on disk or that lives in ``__main__``, and when ``PFBENCH_COMPILE_HELPER=0``.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+
+#: set to "0" to compile everything in the calling process
+ENV = "PFBENCH_COMPILE_HELPER"
+
+
+def usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def enabled() -> bool:
+    """Whether a helper may be started from this process (two cores, not switched off)."""
+    return os.environ.get(ENV, "1") != "0" and usable_cores() >= 2
+
+
+def disable() -> None:
+    """Start no helpers from this process (and its children), e.g. in a pool worker."""
+    os.environ[ENV] = "0"
+
+
+def cold(dispatcher, argtypes: tuple) -> bool:
+    """Whether ``dispatcher`` has ``argtypes`` neither compiled in this process nor in its disk
+    cache (False for a dispatcher without pfbench's disk cache: a helper could not hand it over)."""
+    if tuple(argtypes) in dispatcher.overloads:
+        return False
+    has_entry = getattr(dispatcher._cache, "has_entry", None)  # pfbench's HealingFunctionCache
+    return has_entry is not None and not has_entry(tuple(argtypes), dispatcher.targetctx)
+
+
+class Helper:
+    """A running helper process (:func:`start`)."""
+
+    def __init__(self, proc: subprocess.Popen):
+        self.proc = proc
+
+    def finish(self) -> bool:
+        """Wait for the helper; True when it compiled and saved its function. Killed when the
+        wait is interrupted."""
+        try:
+            return self.proc.wait() == 0
+        except BaseException:
+            self.proc.kill()
+            self.proc.wait()
+            raise
+
+
+def start(model_cls: type, family: str, f_tiles: bool, function: str, argtypes: tuple) -> Helper | None:
+    """Compile ``function`` of the any-scheme kernel module of ``model_cls``
+    (:func:`pfbench.backends.numba_backend.kernel_module` with ``scheme=None``) for ``argtypes``
+    in a helper process, into the disk cache; None when no helper is used (see the module
+    docstring) or it cannot be started."""
+    if not enabled() or model_cls.__module__ == "__main__":
+        return None
+    spec = {"path": list(sys.path), "module": model_cls.__module__, "qualname": model_cls.__qualname__,
+            "family": family, "f_tiles": bool(f_tiles), "function": function, "argtypes": tuple(argtypes),
+            "parent": os.getpid()}
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+    try:
+        proc.stdin.write(pickle.dumps(spec))
+        proc.stdin.close()
+    except OSError:  # it died at once: compile here
+        proc.kill()
+        proc.wait()
+        return None
+    return Helper(proc)
+
+
+def _main() -> int:
+    spec = pickle.loads(sys.stdin.buffer.read())
+    from pfbench.procs import die_with_parent
+
+    die_with_parent(spec["parent"])
+    sys.path[:] = spec["path"]
+    from pfbench.backends import native_call
+    from pfbench.backends.numba_backend import kernel_module, model_class_by_name
+
+    cls = model_class_by_name(spec["module"], spec["qualname"])
+    mod = kernel_module(cls, spec["family"], None, f_tiles=spec["f_tiles"])
+    native_call.entry_address(getattr(mod, spec["function"]), spec["argtypes"])
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - runs in the helper process
+    sys.exit(_main())

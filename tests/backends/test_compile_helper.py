@@ -1,0 +1,102 @@
+"""A cold particle kernel compiles pass A in a helper process while the driver compiles here; a
+helper that fails costs only the parallelism, and no helper runs where it cannot win."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pfbench.backends import compile_helper
+
+SCRIPT = r"""
+import json, sys
+import numpy as np
+from pfbench.backends import compile_helper, numba_backend
+from pfbench.filters.run import run_filter
+from pfbench.models import get
+
+started = []
+real_start = compile_helper.start
+
+
+def counting_start(cls, *args):
+    started.append(cls.__qualname__)
+    if cls.__qualname__ == "Ob1":  # a helper that cannot import its model: it fails
+        cls = type("Nope", (), {"__module__": "pfbench_no_such_module"})
+    return real_start(cls, *args)
+
+
+compile_helper.start = counting_start
+out = {}
+for name, scheme in (("ob1", "systematic"), ("ob2", "systematic"), ("ob2", "stratified")):
+    m = get(name)
+    y = m.simulate(15, seed=1).y
+    r = run_filter(m, y, n_particles=64, seed=3, resampling=scheme, n_threads=1)
+    mod = numba_backend.kernel_module(m, "particle", scheme)
+    a, d = mod._pass_a.stats, mod.run_group.stats
+    out[f"{name}/{scheme}"] = {"pass_a": [sum(a.cache_hits.values()), sum(a.cache_misses.values())],
+                               "driver_misses": sum(d.cache_misses.values()),
+                               "started": list(started), "est": r.estimates.tolist()}
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.skipif(compile_helper.usable_cores() < 2, reason="a compile helper needs a second core")
+def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(tmp_path):
+    """In one fresh process with an empty cache:
+
+    * Ob1, whose helper fails (it cannot import the model): this process compiles pass A itself (a
+      miss) and the results are right. Catches: trusting a helper that failed.
+    * Ob2, cold: the helper compiles pass A, this process loads it from disk (a hit, no miss) and
+      compiles the driver. Catches: no helper, or a helper that compiles other argument types.
+    * Ob2 with another scheme: pass A is compiled already, so no helper starts. Catches: a helper
+      for every cold driver.
+
+    Every run gives the estimates of the same run in this (test) process, bit for bit."""
+    from pfbench.filters.run import run_filter
+    from pfbench.models import get
+
+    env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "pf"), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
+    env.pop(compile_helper.ENV, None)
+    r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env,
+                       timeout=900, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    ob1, ob2, ob2s = got["ob1/systematic"], got["ob2/systematic"], got["ob2/stratified"]
+    assert ob1["pass_a"] == [0, 1] and ob1["driver_misses"] == 1
+    assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
+    assert ob2["started"] == ["Ob1", "Ob2"]
+    assert ob2s["started"] == ["Ob1", "Ob2"] and ob2s["driver_misses"] == 1
+    for key, res in got.items():
+        name, scheme = key.split("/")
+        m = get(name)
+        want = run_filter(m, m.simulate(15, seed=1).y, n_particles=64, seed=3, resampling=scheme,
+                          n_threads=1).estimates
+        np.testing.assert_array_equal(np.asarray(res["est"]), want)
+
+
+def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
+    """Catches: a helper that competes with this process for its only core, or one that ignores
+    ``PFBENCH_COMPILE_HELPER=0``."""
+    monkeypatch.delenv(compile_helper.ENV, raising=False)
+    monkeypatch.setattr(compile_helper, "usable_cores", lambda: 1)
+    assert not compile_helper.enabled()
+    assert compile_helper.start(type(None), "particle", False, "_pass_a", ()) is None
+    monkeypatch.setattr(compile_helper, "usable_cores", lambda: 2)
+    assert compile_helper.enabled()
+    monkeypatch.setenv(compile_helper.ENV, "0")
+    assert not compile_helper.enabled()
+
+
+def test_a_helper_that_cannot_run_reports_failure():
+    """A helper whose model module does not exist exits non-zero, and :meth:`Helper.finish` says
+    so. Catches: a finish() that reports success without looking at the exit status."""
+    nope = type("Nope", (), {"__module__": "pfbench_no_such_module"})
+    helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"]))
+    assert helper.finish() is False
+    os.environ.pop(compile_helper.ENV, None)
+    if compile_helper.enabled():
+        helper = compile_helper.start(nope, "particle", False, "_pass_a", ())
+        assert helper is not None and helper.finish() is False
