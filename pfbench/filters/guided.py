@@ -351,8 +351,10 @@ _WARM: set = set()
 
 
 def _run_numba(model, p, rng, y, u, x, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
+    lw = np.empty(x.shape[0])
+    numpy_init(_functions(type(model)), p, rng, x, lw)  # in NumPy, as the reference: the kernel continues
     getattr(_numba_backend.kernel_module(model, "guided", scheme), f"run_{kind}")(
-        p, rng, y, u, x, n_noise, scheme, threshold, est, var, ess, inc, res, degen)
+        p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, res, degen)
 
 
 def _warm_up(model, p, y, u, x, kind, n_noise, scheme) -> None:

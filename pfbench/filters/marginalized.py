@@ -382,7 +382,7 @@ def _run_numpy(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
     idx_n, idx_l, d_n = s["idx_n"], s["idx_l"], s["d_n"]
     yw = s["yw"]
     if d_n:
-        xn = np.ascontiguousarray(np.asarray(model.initial(rng, n, p), dtype=np.float64)[:, idx_n])
+        xn = _initial_xn(model, rng, n, p, idx_n)
     else:
         xn = np.zeros((n, 0))
     m = np.tile(s["m0"], (n, 1))
@@ -407,6 +407,11 @@ def _run_numpy(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
             xn, m, P = xn[idx], m[idx], P[idx]
 
 
+def _initial_xn(model, rng, n: int, p, idx_n) -> np.ndarray:
+    """The x^n components of n draws of the model's prior (step 1 of the draw order; both backends)."""
+    return np.ascontiguousarray(np.asarray(model.initial(rng, n, p), dtype=np.float64)[:, idx_n])
+
+
 _WARM: set = set()
 
 
@@ -414,7 +419,7 @@ def _numba_module(model, scheme):
     from ..backends import numba_backend
 
     numba_backend.register_family("mpf", "numba_mpf.py",
-                                  ("initial", "cl_transition", "cl_observation", "cl_constrain"))
+                                  ("cl_transition", "cl_observation", "cl_constrain"))
     return numba_backend.kernel_module(model, "mpf", scheme)
 
 
@@ -425,7 +430,8 @@ def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
                                               ess, inc, degen)
         return
     run = _numba_module(model, scheme).run
-    run(p, rng, s["yw"], u, n, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
+    xn = _initial_xn(model, rng, n, p, s["idx_n"])  # in NumPy, as the reference: the kernel continues
+    run(p, rng, s["yw"], u, xn, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
         s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen)
 
 
