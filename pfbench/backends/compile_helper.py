@@ -74,9 +74,13 @@ class Helper:
         try:
             return self.proc.wait() == 0
         except BaseException:
-            self.proc.kill()
-            self.proc.wait()
+            self.kill()
             raise
+
+    def kill(self) -> None:
+        """End the helper now (its work is no longer wanted: an interrupt or an error here)."""
+        self.proc.kill()
+        self.proc.wait()
 
 
 def start(model_cls: type, family: str, f_tiles: bool, function: str, argtypes: tuple) -> Helper | None:

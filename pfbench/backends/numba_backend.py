@@ -317,8 +317,10 @@ def _pass_a_address(model, mod, driver, args: list, argtypes: tuple) -> int:
                 if helper is not None:
                     try:
                         driver.compile(sig)
-                    finally:
-                        helper.finish()
+                    except BaseException:  # Ctrl-C (delivered when the compile ends) or an error
+                        helper.kill()
+                        raise
+                    helper.finish()
         return native_call.entry_address(mod._pass_a, argtypes)
 
 

@@ -100,3 +100,16 @@ def test_a_helper_that_cannot_run_reports_failure():
     if compile_helper.enabled():
         helper = compile_helper.start(nope, "particle", False, "_pass_a", ())
         assert helper is not None and helper.finish() is False
+
+
+def test_kill_ends_a_helper_at_once():
+    """A helper whose work is no longer wanted (Ctrl-C or an error while the driver compiles) is
+    ended with SIGKILL: it holds SIGTERM back while numba compiles
+    (:mod:`pfbench.backends.interrupts`). Catches: terminate() (this one ignores SIGTERM and would
+    sleep a minute)."""
+    import signal
+
+    code = "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(60)"
+    helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", code]))
+    helper.kill()
+    assert helper.proc.returncode == -signal.SIGKILL
