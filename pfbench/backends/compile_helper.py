@@ -1,25 +1,28 @@
-"""A cold kernel compiled on two cores: pass A in a helper process, the driver here.
+"""A cold kernel compiled on two cores: the model's part in a helper process, the driver here.
 
-A particle kernel that is in no cache is two compiles that do not need each other: pass A (the
-draws and the model's functions, inlined) and the driver with passes B and C. The driver calls
-pass A through its native entry point (:mod:`pfbench.backends.native_call`), so compiling it
-needs pass A's signature, not its code. numba compiles one function at a time per process (one
-global compiler lock), so the two run one after the other in one process: about 3.0 s and 3.6 s
-for Ob1 (measured with numba's event recorder, quiet machine).
+A filter kernel that is in no cache is two compiles that do not need each other: the functions
+that inline the model (the particle kernel's pass A: the draws and the model's transition and
+likelihood; the MPF kernel's calls of the model's ``cl_*`` functions) and the driver with the
+model-free passes. The driver calls the model's part through its native entry point
+(:mod:`pfbench.backends.native_call`), so compiling it needs that part's signature, not its
+code. numba compiles one function at a time per process (one global compiler lock), so the two
+run one after the other in one process: for Ob1 about 3.0 s (pass A) and 3.6 s (the driver),
+measured with numba's event recorder on a quiet machine.
 
-With two or more usable cores, when both are missing from the disk cache, :func:`start` runs
-``python -m pfbench.backends.compile_helper`` with pass A's identity (the model class by module
-and name, the kernel family, the tile layout, the argument types), which compiles pass A into
-the same disk cache (:mod:`pfbench.backends.cache`: one cache per installation) while this
-process compiles the driver; :func:`finish` waits for it, and this process then loads pass A
-from disk.
+With two or more usable cores, when both are missing from the disk cache,
+:func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`, which runs ``python -m
+pfbench.backends.compile_helper`` with the model class (by module and name), the kernel family,
+the tile layout and the functions' names and argument types. The helper compiles those functions
+into the same disk cache (:mod:`pfbench.backends.cache`: one cache per installation) while this
+process compiles the driver; :meth:`Helper.finish` waits for it, and this process then loads
+the functions from disk.
 
 The helper only ever saves time. Whatever goes wrong there (the model's module cannot be
 imported in a new process, a compile error, a crash, a kill) leaves no cache entry, and this
-process compiles pass A itself, raising any error exactly as it would without a helper. A
+process compiles the functions itself, raising any error exactly as it would without a helper. A
 damaged entry the helper might leave is healed by the cache like any other. The helper dies with
-this process (:func:`pfbench.procs.die_with_parent`) and is killed if this process stops waiting
-(Ctrl-C).
+this process (:func:`pfbench.procs.die_with_parent`), and it is killed if the driver's compile
+ends by an interrupt or an error.
 
 Not used: with one usable core (no second core to win), in pfbench's pool workers (the pool
 already uses every core; :func:`pfbench.procs.process_pool`), for a model that numba cannot
@@ -83,16 +86,18 @@ class Helper:
         self.proc.wait()
 
 
-def start(model_cls: type, family: str, f_tiles: bool, function: str, argtypes: tuple) -> Helper | None:
-    """Compile ``function`` of the any-scheme kernel module of ``model_cls``
-    (:func:`pfbench.backends.numba_backend.kernel_module` with ``scheme=None``) for ``argtypes``
-    in a helper process, into the disk cache; None when no helper is used (see the module
-    docstring) or it cannot be started."""
+def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | None:
+    """Compile ``functions``, a list of ``(name, argument types)``, of the any-scheme kernel module
+    of ``model_cls`` for the kernel ``family`` (:func:`pfbench.backends.numba_backend.kernel_module`
+    with ``scheme=None``) in a helper process, into the disk cache; None when no helper is used
+    (see the module docstring) or it cannot be started."""
     if not enabled() or model_cls.__module__ == "__main__":
         return None
+    from .numba_backend import FAMILIES
+
     spec = {"path": list(sys.path), "module": model_cls.__module__, "qualname": model_cls.__qualname__,
-            "family": family, "f_tiles": bool(f_tiles), "function": function, "argtypes": tuple(argtypes),
-            "parent": os.getpid()}
+            "family": family, "family_def": FAMILIES[family], "f_tiles": bool(f_tiles),
+            "functions": [(name, tuple(argtypes)) for name, argtypes in functions], "parent": os.getpid()}
     try:
         proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -115,11 +120,13 @@ def _main() -> int:
     die_with_parent(spec["parent"])
     sys.path[:] = spec["path"]
     from pfbench.backends import native_call
-    from pfbench.backends.numba_backend import kernel_module, model_class_by_name
+    from pfbench.backends.numba_backend import kernel_module, model_class_by_name, register_family
 
+    register_family(spec["family"], *spec["family_def"])
     cls = model_class_by_name(spec["module"], spec["qualname"])
     mod = kernel_module(cls, spec["family"], None, f_tiles=spec["f_tiles"])
-    native_call.entry_address(getattr(mod, spec["function"]), spec["argtypes"])
+    for name, argtypes in spec["functions"]:
+        native_call.entry_address(getattr(mod, name), argtypes)
     return 0
 
 

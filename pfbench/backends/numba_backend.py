@@ -50,7 +50,8 @@ FAMILIES: dict[str, tuple[str, tuple[str, ...]]] = {
 #: module of a scheme takes them from the model's any-scheme module (``scheme=None``), so all the
 #: schemes of a model share one compilation of them (the particle kernel's pass A, the draws and the
 #: model inlined, is about 40 % of its cold compile)
-SCHEME_FREE: dict[str, tuple[str, ...]] = {"particle": ("_pass_a",)}
+SCHEME_FREE: dict[str, tuple[str, ...]] = {
+    "particle": ("_pass_a",), "mpf": ("_transition_into", "_observation_into", "_constrain_into")}
 _LOCK = threading.RLock()
 _MODULES: dict[tuple[str, type, str, bool], object] = {}
 _FUNCS: dict[tuple[type, str], object] = {}
@@ -286,7 +287,11 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
-        args[-1] = _pass_a_address(model, mod, driver, args, pass_a_types(p, rng, y, u, work))
+        import numba
+
+        args[-1], = native_addresses(model, "particle", mod, driver, args,
+                                     [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64)],
+                                     f_tiles=column_major_tiles(model))
         if parallel:
             import numba
 
@@ -301,19 +306,22 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
             driver(*args)
 
 
-def _pass_a_address(model, mod, driver, args: list, argtypes: tuple) -> int:
-    """The address of pass A compiled for ``argtypes``; when it and the driver are both cold, pass A
-    is compiled by a helper process while this one compiles the driver
+def native_addresses(model, family: str, mod, driver, args, calls, *, f_tiles: bool = False) -> list:
+    """The native entry addresses of the functions ``driver`` calls by address
+    (:mod:`pfbench.backends.native_call`): ``calls`` lists ``(name, argument types, return type)`` of
+    scheme-free functions of the kernel module ``mod`` (:data:`SCHEME_FREE`), the ones that inline
+    the model. When they and the driver (called with ``args``, the addresses' places holding ints)
+    are all cold, a helper process compiles them while this one compiles the driver
     (:mod:`pfbench.backends.compile_helper`)."""
-    import numba
-
+    funcs = [(getattr(mod, name), argtypes, restype) for name, argtypes, restype in calls]
     with _LOCK:  # threads of one process start one helper, not one each
-        native_call.declare(mod._pass_a, argtypes, numba.types.float64)  # pass A returns its max
-        if compile_helper.enabled() and compile_helper.cold(mod._pass_a, argtypes):
+        for func, argtypes, restype in funcs:
+            native_call.declare(func, argtypes, restype)
+        if compile_helper.enabled() and all(compile_helper.cold(f, a) for f, a, _ in funcs):
             sig = tuple(driver.typeof_pyval(a) for a in args)
             if compile_helper.cold(driver, sig):
-                helper = compile_helper.start(type(model), "particle", column_major_tiles(model), "_pass_a",
-                                              argtypes)
+                helper = compile_helper.start(type(model), family, f_tiles,
+                                              [(name, argtypes) for name, argtypes, _ in calls])
                 if helper is not None:
                     try:
                         driver.compile(sig)
@@ -321,7 +329,7 @@ def _pass_a_address(model, mod, driver, args: list, argtypes: tuple) -> int:
                         helper.kill()
                         raise
                     helper.finish()
-        return native_call.entry_address(mod._pass_a, argtypes)
+        return [native_call.entry_address(f, a) for f, a, _ in funcs]
 
 
 def _raised_in_parallel(exc: SystemError) -> BaseException:

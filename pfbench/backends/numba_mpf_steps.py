@@ -11,9 +11,12 @@ model function, so they live here, in an ordinary cached module, and are compile
 (loaded from disk after that) for every model and scheme, not once per generated kernel module.
 Each is a function of its own, called by the kernel's entry points directly: a compiled function
 costs a fixed ~0.2 s, and every caller optimises the machine code of all it calls once more, so
-they are few and call nothing but :func:`sandwich`.
+they are few and call nothing but :func:`sandwich`. :func:`copy_into` copies what the model's
+structure functions return into the kernel's own arrays.
 """
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
 from pfbench.backends.cache import njit
 from pfbench.models.base import LOG_2PI
@@ -219,3 +222,44 @@ def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est,
             cov[idx_l[a], idx_l[b]] += v
             if a != b:
                 cov[idx_l[b], idx_l[a]] += v
+
+
+
+def copy_into(src, dst):  # pragma: no cover - compiled through the overload below
+    dst[...] = src
+
+
+@overload(copy_into)
+def _copy_into_impl(src, dst):
+    """dst[...] = src, ``dst`` a float64 C array, ``src`` an array of its shape (any dtype and
+    layout; a ValueError for another shape): one flat loop when ``src`` is C-contiguous (the
+    common case: the inner axes are short, d_n, d_l and n_y, and nested loops over them cost
+    more than the copy itself), nested loops otherwise."""
+    if not (isinstance(src, types.Array) and src.ndim == dst.ndim and dst.ndim in (2, 3)):
+        return None
+    if src.layout == "C":
+        def flat(src, dst):
+            if src.shape != dst.shape:
+                raise ValueError("a structure function returned an array of another shape")
+            s = src.reshape(src.size)
+            d = dst.reshape(dst.size)
+            for i in range(d.size):
+                d[i] = s[i]
+        return flat
+    if dst.ndim == 2:
+        def nested2(src, dst):
+            if src.shape != dst.shape:
+                raise ValueError("a structure function returned an array of another shape")
+            for i in range(dst.shape[0]):
+                for j in range(dst.shape[1]):
+                    dst[i, j] = src[i, j]
+        return nested2
+
+    def nested3(src, dst):
+        if src.shape != dst.shape:
+            raise ValueError("a structure function returned an array of another shape")
+        for i in range(dst.shape[0]):
+            for j in range(dst.shape[1]):
+                for k in range(dst.shape[2]):
+                    dst[i, j, k] = src[i, j, k]
+    return nested3

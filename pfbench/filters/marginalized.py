@@ -424,15 +424,35 @@ def _numba_module(model, scheme):
 
 
 def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
+    from ..backends.numba_backend import native_addresses
+
+    u = np.ascontiguousarray(u)  # its rows are then the C arrays _model_calls types
     if s["d_n"] == 0:  # one Kalman/EKF recursion: no random numbers, no resampling scheme
         _numba_module(model, None).run_linear(p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"],
                                               s["whiten"], s["logdet"], s["m0"], s["P0"], est, cov,
                                               ess, inc, degen)
         return
-    run = _numba_module(model, scheme).run
+    mod = _numba_module(model, scheme)
     xn = _initial_xn(model, rng, n, p, s["idx_n"])  # in NumPy, as the reference: the kernel continues
-    run(p, rng, s["yw"], u, xn, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
-        s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen)
+    args = [p, rng, s["yw"], u, xn, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
+            s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen, 0, 0, 0]
+    args[-3:] = native_addresses(model, "mpf", mod, mod.run, args, _model_calls(p, u))
+    mod.run(*args)
+
+
+def _model_calls(p, u) -> list:
+    """``(name, argument types, return type)`` of the numba MPF kernel's calls of the model
+    (``_transition_into``, ``_observation_into``, ``_constrain_into`` in
+    ``pfbench.backends.numba_mpf``), which its drivers make by address: the particle and output
+    arrays are the kernel's own float64 C arrays, ``u[t]`` a row of the C-contiguous ``u``."""
+    import numba
+
+    f64, i64, none = numba.types.float64, numba.types.int64, numba.types.none
+    a2, a3 = numba.types.Array(f64, 2, "C"), numba.types.Array(f64, 3, "C")
+    pt, ut = numba.typeof(p), numba.typeof(u[0])
+    return [("_transition_into", (a2, ut, i64, pt, a2, a3, a2, a3), none),
+            ("_observation_into", (a2, a2, ut, i64, pt, a2, a3), none),
+            ("_constrain_into", (a2, pt, a2), none)]
 
 
 def _warm_up(model, p, n, s, u, scheme) -> None:

@@ -11,7 +11,7 @@ import pytest
 from pfbench.backends import compile_helper
 
 SCRIPT = r"""
-import json, sys
+import json, re, sys
 import numpy as np
 from pfbench.backends import compile_helper, numba_backend
 from pfbench.filters.run import run_filter
@@ -39,6 +39,15 @@ for name, scheme in (("ob1", "systematic"), ("ob2", "systematic"), ("ob2", "stra
     out[f"{name}/{scheme}"] = {"pass_a": [sum(a.cache_hits.values()), sum(a.cache_misses.values())],
                                "driver_misses": sum(d.cache_misses.values()),
                                "started": list(started), "est": r.estimates.tolist()}
+m = get("ob5")
+tr = m.simulate(15, seed=1)
+r = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3)
+mod = numba_backend.kernel_module(m, "mpf", "systematic")
+out["mpf"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+                              for f in (mod._transition_into, mod._observation_into, mod._constrain_into)],
+              "driver_misses": sum(mod.run.stats.cache_misses.values()),
+              "driver_defines": re.findall(r"define [^@]*@(\S+)\(", mod.run.inspect_llvm(mod.run.signatures[0])),
+              "started": list(started), "est": r.estimates.tolist()}
 print(json.dumps(out))
 """
 
@@ -53,6 +62,9 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
       compiles the driver. Catches: no helper, or a helper that compiles other argument types.
     * Ob2 with another scheme: pass A is compiled already, so no helper starts. Catches: a helper
       for every cold driver.
+    * The MPF on Ob5 (three nonlinear states): the helper compiles the kernel's three calls of
+      the model, this process loads them (hits, no miss) and compiles the driver, whose code
+      defines none of the model's functions. Catches: a driver calling the model directly.
 
     Every run gives the estimates of the same run in this (test) process, bit for bit."""
     from pfbench.filters.run import run_filter
@@ -69,6 +81,15 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
     assert ob2["started"] == ["Ob1", "Ob2"]
     assert ob2s["started"] == ["Ob1", "Ob2"] and ob2s["driver_misses"] == 1
+    mpf = got.pop("mpf")
+    assert mpf["model_calls"] == [[1, 0]] * 3 and mpf["driver_misses"] == 1
+    assert any("run" in d for d in mpf["driver_defines"])
+    assert not any("cl_" in d or "_into" in d for d in mpf["driver_defines"])  # the model is not in it
+    assert mpf["started"] == ["Ob1", "Ob2", "Ob5"]
+    m = get("ob5")
+    tr = m.simulate(15, seed=1)
+    want = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3).estimates
+    np.testing.assert_array_equal(np.asarray(mpf["est"]), want)
     for key, res in got.items():
         name, scheme = key.split("/")
         m = get(name)
@@ -83,7 +104,7 @@ def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
     monkeypatch.delenv(compile_helper.ENV, raising=False)
     monkeypatch.setattr(compile_helper, "usable_cores", lambda: 1)
     assert not compile_helper.enabled()
-    assert compile_helper.start(type(None), "particle", False, "_pass_a", ()) is None
+    assert compile_helper.start(type(None), "particle", False, [("_pass_a", ())]) is None
     monkeypatch.setattr(compile_helper, "usable_cores", lambda: 2)
     assert compile_helper.enabled()
     monkeypatch.setenv(compile_helper.ENV, "0")
@@ -98,7 +119,7 @@ def test_a_helper_that_cannot_run_reports_failure():
     assert helper.finish() is False
     os.environ.pop(compile_helper.ENV, None)
     if compile_helper.enabled():
-        helper = compile_helper.start(nope, "particle", False, "_pass_a", ())
+        helper = compile_helper.start(nope, "particle", False, [("_pass_a", ())])
         assert helper is not None and helper.finish() is False
 
 
