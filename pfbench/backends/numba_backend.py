@@ -293,8 +293,6 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
                                      [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64)],
                                      f_tiles=column_major_tiles(model))
         if parallel:
-            import numba
-
             k = min(int(n_threads or numba.config.NUMBA_NUM_THREADS), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
                 numba.set_num_threads(k)

@@ -2,16 +2,19 @@
 ``pfbench.filters.marginalized._run_numpy``.
 
 Same steps, same random draws in the same order (the prior, drawn by the caller with the model's
-NumPy ``initial`` when d_n > 0, then per step the x^n noise and the resampling draws), the same step math. The NumPy backend runs the
-vectorised helpers of :mod:`pfbench.filters.marginalized`; their compiled twins, scalar loops with
-the same operations in the same order, are in :mod:`pfbench.backends.numba_mpf_steps` (they call
-no model function, so every model and scheme shares one compilation of them); ``kalman_predict``
-is ``sandwich``, ``condition``, ``time_update`` in :func:`run`. Weighting, moments and resampling
-are the package's one compiled versions (:mod:`pfbench.backends.numba_weights`,
-:mod:`pfbench.backends.numba_resampling`, the scheme bound as ``_resample``). The model is called
-through the module globals ``_cl_transition``, ``_cl_observation`` and ``_cl_constrain`` (placeholders here), once per step on all particles;
-:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of this file per model class
-with the model's compiled functions bound to those names, so numba caches the whole kernel on disk.
+NumPy ``initial`` when d_n > 0, then per step the x^n noise and the resampling draws), the same
+step math. The NumPy backend runs the vectorised helpers of :mod:`pfbench.filters.marginalized`;
+their compiled twins, scalar loops with the same operations in the same order, are in
+:mod:`pfbench.backends.numba_mpf_steps` (they call no model function, so every model and scheme
+shares one compilation of them); ``kalman_predict`` is ``sandwich``, ``condition``,
+``time_update`` in :func:`run`. Weighting, moments and resampling are the package's one compiled
+versions (:mod:`pfbench.backends.numba_weights`, :mod:`pfbench.backends.numba_resampling`, the
+scheme bound as ``_resample``). The model is called through the module globals
+``_cl_transition``, ``_cl_observation`` and ``_cl_constrain`` (placeholders here), once per step
+on all particles: :func:`run` through three wrappers called by address (see "the model's calls"
+below), :func:`run_linear` directly. :func:`pfbench.backends.numba_backend.kernel_module` writes a
+copy of this file per model class with the model's compiled functions bound to those names, so
+numba caches the whole kernel on disk.
 
 Two entry points, so a call compiles only what it runs: :func:`run` for models with nonlinear
 states (d_n > 0) and :func:`run_linear` for d_n = 0 (the ``kalman`` method and the MPF on a fully

@@ -443,8 +443,9 @@ def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
 def _model_calls(p, u) -> list:
     """``(name, argument types, return type)`` of the numba MPF kernel's calls of the model
     (``_transition_into``, ``_observation_into``, ``_constrain_into`` in
-    ``pfbench.backends.numba_mpf``), which its drivers make by address: the particle and output
-    arrays are the kernel's own float64 C arrays, ``u[t]`` a row of the C-contiguous ``u``."""
+    ``pfbench.backends.numba_mpf``), which its driver ``run`` makes by address: the particle and
+    output arrays are the kernel's own float64 C arrays, ``u[t]`` a row of the C-contiguous ``u``.
+    The driver's compile refuses other types (:func:`pfbench.backends.native_call.caller`)."""
     import numba
 
     f64, i64, none = numba.types.float64, numba.types.int64, numba.types.none
