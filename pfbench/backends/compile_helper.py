@@ -10,9 +10,10 @@ run one after the other in one process: for Ob1 about 3.0 s (pass A) and 3.6 s (
 measured with numba's event recorder on a quiet machine.
 
 With two or more usable cores, when both are missing from the disk cache,
-:func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`, which runs ``python -m
-pfbench.backends.compile_helper`` with the model class (by module and name), the kernel family,
-the tile layout and the functions' names and argument types. The helper compiles those functions
+:func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`, which runs a helper
+Python (``python -c``, with this process's import path, so it imports the same pfbench and model
+module) and hands it the model class (by module and name), the kernel family, the tile layout and
+the functions' names and argument types. The helper compiles those functions
 into the same disk cache (:mod:`pfbench.backends.cache`: one cache per installation) while this
 process compiles the driver; :meth:`Helper.finish` waits for it, and this process then loads
 the functions from disk.
@@ -95,16 +96,16 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
         return None
     from .numba_backend import FAMILIES
 
-    spec = {"path": list(sys.path), "module": model_cls.__module__, "qualname": model_cls.__qualname__,
+    spec = {"module": model_cls.__module__, "qualname": model_cls.__qualname__,
             "family": family, "family_def": FAMILIES[family], "f_tiles": bool(f_tiles),
             "functions": [(name, tuple(argtypes)) for name, argtypes in functions], "parent": os.getpid()}
     try:
-        proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+        proc = subprocess.Popen([sys.executable, "-c", _BOOT], stdin=subprocess.PIPE,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         return None
-    try:
-        proc.stdin.write(pickle.dumps(spec))
+    try:  # this process's import path first, so the helper imports the pfbench and model it uses
+        proc.stdin.write(pickle.dumps((list(sys.path), pickle.dumps(spec))))
         proc.stdin.close()
     except OSError:  # it died at once: compile here
         proc.kill()
@@ -113,12 +114,20 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
     return Helper(proc)
 
 
-def _main() -> int:
-    spec = pickle.loads(sys.stdin.buffer.read())
+#: the helper's program: this process's import path, then :func:`_main` with the spec (which
+#: holds numba types: unpickled once the path is set)
+_BOOT = ("import pickle, sys\n"
+         "path, spec = pickle.loads(sys.stdin.buffer.read())\n"
+         "sys.path[:] = path\n"
+         "from pfbench.backends.compile_helper import _main\n"
+         "sys.exit(_main(pickle.loads(spec)))\n")
+
+
+def _main(spec: dict) -> int:
+    """Compile the functions of ``spec`` (:func:`start`) into the disk cache; runs in the helper."""
     from pfbench.procs import die_with_parent
 
     die_with_parent(spec["parent"])
-    sys.path[:] = spec["path"]
     from pfbench.backends import native_call
     from pfbench.backends.numba_backend import kernel_module, model_class_by_name, register_family
 
@@ -129,6 +138,3 @@ def _main() -> int:
         native_call.entry_address(getattr(mod, name), argtypes)
     return 0
 
-
-if __name__ == "__main__":  # pragma: no cover - runs in the helper process
-    sys.exit(_main())
