@@ -12,7 +12,7 @@ versions (:mod:`pfbench.backends.numba_weights`, :mod:`pfbench.backends.numba_re
 scheme bound as ``_resample``). The model is called through the module globals
 ``_cl_transition``, ``_cl_observation`` and ``_cl_constrain`` (placeholders here), once per step
 on all particles: :func:`run` through three wrappers called by address (see "the model's calls"
-below), :func:`run_linear` directly. :func:`pfbench.backends.numba_backend.kernel_module` writes a
+below), :func:`run_linear` directly (it calls the step math by address instead). :func:`pfbench.backends.numba_backend.kernel_module` writes a
 copy of this file per model class with the model's compiled functions bound to those names, so
 numba caches the whole kernel on disk.
 
@@ -38,6 +38,8 @@ from pfbench.backends.native_call import caller as _caller
 _call3 = _caller(3)
 _call7 = _caller(7)
 _call8 = _caller(8)
+_call12 = _caller(12)
+_call15 = _caller(15)
 
 
 def _cl_transition(xn, u, t, p):  # pragma: no cover - bound per model
@@ -186,7 +188,8 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
 
 
 @_njit(nogil=True)
-def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, ess, inc, degen):
+def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, ess, inc, degen,
+               time_update_address, kalman_update_address, mixture_moments_address):
     """The d_n = 0 case of :func:`run` (every state in x^l): one Kalman/EKF recursion, no random
     numbers, no resampling; the same operations as :func:`run` with one particle, compiled without
     the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`.
@@ -196,11 +199,17 @@ def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, es
     or NaN, as :func:`~pfbench.backends.numba_weights.weigh` decides), N_eff = 1, the mean of x^l
     = the copy's own.
 
-    It calls the model directly, not by address as :func:`run` does: inlined here, the model's
-    code is optimised for the one copy and the empty x^n (shapes (1, 0) known to LLVM), which
-    the wrappers compiled on their own cannot be. Measured (linear-Gaussian model, 3000 steps,
-    alternating processes): 2.0 us per step inlined, 2.8 us by address; the cold start that the
-    address would let a helper shorten is 6.1 s instead of 4.8 s."""
+    It calls the model directly (inlined, LLVM optimises the model's code for the one copy and the
+    empty x^n, whose shapes (1, 0) it sees; by address a step of the linear-Gaussian filter took
+    2.8 us instead of 2.0 us) and the step math by address instead (``time_update_address``,
+    ``kalman_update_address``, ``mixture_moments_address``: those functions compiled for the
+    argument types of their calls here, :func:`pfbench.filters.marginalized._step_calls`), so a
+    cold start compiles the step math in a helper process while this one compiles the driver and
+    the model (:mod:`pfbench.backends.compile_helper`). The model's arrays are copied into the
+    kernel's own, which gives the steps one argument type for every model. Measured
+    (linear-Gaussian model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with
+    the steps inlined vs by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
+    """
     d_l = idx_l.shape[0]
     n_y = y.shape[1]
     xn = _np.empty((1, 0))
@@ -223,12 +232,21 @@ def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, es
     wu = _np.empty(1)
     wu[0] = 1.0
     mean_l = _np.empty(d_l)
+    fl = _np.empty((1, d_l))
+    Al = _np.empty((1, d_l, d_l))
+    h = _np.empty((1, n_y))
+    C = _np.empty((1, n_y, d_l))
     for t in range(y.shape[0]):
         ut = u[t]
-        _, _, fl, Al = _cl_transition(xn, ut, t, p)
-        _time_update(fl, Al, m, P, Ql, AP, m_pred, P_pred)
-        h, C = _cl_observation(xn, m_pred, ut, t, p)
-        _kalman_update(h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet, h0, H, PH, ll, m, P)
+        _, _, fl_, Al_ = _cl_transition(xn, ut, t, p)
+        _copy_into(fl_, fl)
+        _copy_into(Al_, Al)
+        _call8(_time_update, time_update_address, fl, Al, m, P, Ql, AP, m_pred, P_pred)
+        h_, C_ = _cl_observation(xn, m_pred, ut, t, p)
+        _copy_into(h_, h)
+        _copy_into(C_, C)
+        _call15(_kalman_update, kalman_update_address, h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet,
+                h0, H, PH, ll, m, P)
         v = _valid(ll[0])
         deg = not (v > -_np.inf)
         degen[t] = deg
@@ -236,4 +254,5 @@ def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, es
         ess[t] = 1.0
         for a in range(d_l):
             mean_l[a] = m[0, a]
-        _mixture_moments(wu, 1.0, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est[t], cov[t])
+        _call12(_mixture_moments, mixture_moments_address, wu, 1.0, mean_n, mean_l, xn, m, P, idx_n, idx_l,
+                dev, est[t], cov[t])

@@ -428,9 +428,11 @@ def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
 
     u = np.ascontiguousarray(u)  # its rows are then the C arrays _model_calls types
     if s["d_n"] == 0:  # one Kalman/EKF recursion: no random numbers, no resampling scheme
-        _numba_module(model, None).run_linear(p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"],
-                                              s["whiten"], s["logdet"], s["m0"], s["P0"], est, cov,
-                                              ess, inc, degen)
+        mod = _numba_module(model, None)
+        args = [p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"], s["whiten"], s["logdet"], s["m0"],
+                s["P0"], est, cov, ess, inc, degen, 0, 0, 0]
+        args[-3:] = native_addresses(model, "mpf", mod, mod.run_linear, args, _step_calls(s, est, cov))
+        mod.run_linear(*args)
         return
     mod = _numba_module(model, scheme)
     xn = _initial_xn(model, rng, n, p, s["idx_n"])  # in NumPy, as the reference: the kernel continues
@@ -438,6 +440,25 @@ def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
             s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen, 0, 0, 0]
     args[-3:] = native_addresses(model, "mpf", mod, mod.run, args, _model_calls(p, u))
     mod.run(*args)
+
+
+def _step_calls(s, est, cov) -> list:
+    """``(name, argument types, return type)`` of the Kalman driver's calls of the step math
+    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` in ``pfbench.backends.numba_mpf``,
+    made by address): the kernel's own float64 C arrays, and the structure arrays ``s``, a row of
+    ``yw`` and of the outputs ``est``, ``cov`` as they are passed. The driver's compile refuses
+    other types (:func:`pfbench.backends.native_call.caller`)."""
+    import numba
+
+    f64, none = numba.types.float64, numba.types.none
+    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
+    i1 = numba.types.Array(numba.types.int64, 1, "C")
+    ty = numba.typeof
+    return [("_time_update", (a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
+            ("_kalman_update", (a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
+                                ty(s["logdet"]), a1, a2, a1, a1, a2, a3), none),
+            ("_mixture_moments", (a1, f64, a1, a1, a2, a2, a3, i1, ty(s["idx_l"]), a2, ty(est[0]), ty(cov[0])),
+             none)]
 
 
 def _model_calls(p, u) -> list:

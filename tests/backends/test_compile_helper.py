@@ -39,6 +39,16 @@ for name, scheme in (("ob1", "systematic"), ("ob2", "systematic"), ("ob2", "stra
     out[f"{name}/{scheme}"] = {"pass_a": [sum(a.cache_hits.values()), sum(a.cache_misses.values())],
                                "driver_misses": sum(d.cache_misses.values()),
                                "started": list(started), "est": r.estimates.tolist()}
+m = get("linear_gaussian")
+tr = m.simulate(15, seed=1)
+r = run_filter(m, tr.y, tr.u, method="kalman")
+mod = numba_backend.kernel_module(m, "mpf", None)
+out["kalman"] = {"step_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+                                for f in (mod._time_update, mod._kalman_update, mod._mixture_moments)],
+                 "driver_misses": sum(mod.run_linear.stats.cache_misses.values()),
+                 "driver_defines": re.findall(r"define [^@]*@(\S+)\(",
+                                              mod.run_linear.inspect_llvm(mod.run_linear.signatures[0])),
+                 "started": list(started), "est": r.estimates.tolist()}
 m = get("ob5")
 tr = m.simulate(15, seed=1)
 r = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3)
@@ -62,6 +72,9 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
       compiles the driver. Catches: no helper, or a helper that compiles other argument types.
     * Ob2 with another scheme: pass A is compiled already, so no helper starts. Catches: a helper
       for every cold driver.
+    * The Kalman filter on the linear-Gaussian model: the helper compiles the step math its
+      driver calls, this process loads it (hits) and compiles the driver with the model inlined;
+      the driver's code defines none of the steps. Catches: steps called directly.
     * The MPF on Ob5 (three nonlinear states): the helper compiles the kernel's three calls of
       the model, this process loads them (hits, no miss) and compiles the driver, whose code
       defines none of the model's functions. Catches: a driver calling the model directly.
@@ -81,11 +94,19 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
     assert ob2["started"] == ["Ob1", "Ob2"]
     assert ob2s["started"] == ["Ob1", "Ob2"] and ob2s["driver_misses"] == 1
+    kal = got.pop("kalman")
+    assert kal["step_calls"] == [[1, 0]] * 3 and kal["driver_misses"] == 1
+    assert any("run_linear" in d for d in kal["driver_defines"])
+    assert not any(k in d for d in kal["driver_defines"] for k in ("time_update", "kalman_update", "mixture"))
+    assert kal["started"] == ["Ob1", "Ob2", "LinearGaussian"]
+    m = get("linear_gaussian")
+    tr = m.simulate(15, seed=1)
+    np.testing.assert_array_equal(np.asarray(kal["est"]), run_filter(m, tr.y, tr.u, method="kalman").estimates)
     mpf = got.pop("mpf")
     assert mpf["model_calls"] == [[1, 0]] * 3 and mpf["driver_misses"] == 1
     assert any("run" in d for d in mpf["driver_defines"])
     assert not any("cl_" in d or "_into" in d for d in mpf["driver_defines"])  # the model is not in it
-    assert mpf["started"] == ["Ob1", "Ob2", "Ob5"]
+    assert mpf["started"] == ["Ob1", "Ob2", "LinearGaussian", "Ob5"]
     m = get("ob5")
     tr = m.simulate(15, seed=1)
     want = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3).estimates
