@@ -307,8 +307,9 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
 def native_addresses(model, family: str, mod, driver, args, calls, *, f_tiles: bool = False) -> list:
     """The native entry addresses of the functions ``driver`` calls by address
     (:mod:`pfbench.backends.native_call`): ``calls`` lists ``(name, argument types, return type)`` of
-    scheme-free functions of the kernel module ``mod`` (:data:`SCHEME_FREE`), the ones that inline
-    the model. When they and the driver (called with ``args``, the addresses' places holding ints)
+    functions of the kernel module ``mod`` that do not depend on the scheme: the ones that inline
+    the model (:data:`SCHEME_FREE`), or model-free ones it imports (the Kalman driver's step
+    math). When they and the driver (called with ``args``, the addresses' places holding ints)
     are all cold, a helper process compiles them while this one compiles the driver
     (:mod:`pfbench.backends.compile_helper`)."""
     funcs = [(getattr(mod, name), argtypes, restype) for name, argtypes, restype in calls]

@@ -12,9 +12,10 @@ versions (:mod:`pfbench.backends.numba_weights`, :mod:`pfbench.backends.numba_re
 scheme bound as ``_resample``). The model is called through the module globals
 ``_cl_transition``, ``_cl_observation`` and ``_cl_constrain`` (placeholders here), once per step
 on all particles: :func:`run` through three wrappers called by address (see "the model's calls"
-below), :func:`run_linear` directly (it calls the step math by address instead). :func:`pfbench.backends.numba_backend.kernel_module` writes a
-copy of this file per model class with the model's compiled functions bound to those names, so
-numba caches the whole kernel on disk.
+below), :func:`run_linear` directly (it calls the step math by address instead).
+:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of this file per model class
+with the model's compiled functions bound to those names, so numba caches the whole kernel on
+disk.
 
 Two entry points, so a call compiles only what it runs: :func:`run` for models with nonlinear
 states (d_n > 0) and :func:`run_linear` for d_n = 0 (the ``kalman`` method and the MPF on a fully

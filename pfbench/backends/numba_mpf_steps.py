@@ -15,8 +15,6 @@ they are few and call nothing but :func:`sandwich`. :func:`copy_into` copies wha
 structure functions return into the kernel's own arrays.
 """
 import numpy as np
-from numba.core import types
-from numba.extending import overload
 
 from pfbench.backends.cache import njit
 from pfbench.models.base import LOG_2PI
@@ -224,42 +222,15 @@ def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est,
                 cov[idx_l[b], idx_l[a]] += v
 
 
-
-def copy_into(src, dst):  # pragma: no cover - compiled through the overload below
-    dst[...] = src
-
-
-@overload(copy_into)
-def _copy_into_impl(src, dst):
-    """dst[...] = src, ``dst`` a float64 C array, ``src`` an array of its shape (any dtype and
-    layout; a ValueError for another shape): one flat loop when ``src`` is C-contiguous (the
-    common case: the inner axes are short, d_n, d_l and n_y, and nested loops over them cost
-    more than the copy itself), nested loops otherwise."""
-    if not (isinstance(src, types.Array) and src.ndim == dst.ndim and dst.ndim in (2, 3)):
-        return None
-    if src.layout == "C":
-        def flat(src, dst):
-            if src.shape != dst.shape:
-                raise ValueError("a structure function returned an array of another shape")
-            s = src.reshape(src.size)
-            d = dst.reshape(dst.size)
-            for i in range(d.size):
-                d[i] = s[i]
-        return flat
-    if dst.ndim == 2:
-        def nested2(src, dst):
-            if src.shape != dst.shape:
-                raise ValueError("a structure function returned an array of another shape")
-            for i in range(dst.shape[0]):
-                for j in range(dst.shape[1]):
-                    dst[i, j] = src[i, j]
-        return nested2
-
-    def nested3(src, dst):
-        if src.shape != dst.shape:
-            raise ValueError("a structure function returned an array of another shape")
-        for i in range(dst.shape[0]):
-            for j in range(dst.shape[1]):
-                for k in range(dst.shape[2]):
-                    dst[i, j, k] = src[i, j, k]
-    return nested3
+@njit(nogil=True)
+def copy_into(src, dst):
+    """dst[...] = src for ``dst`` a float64 C array and ``src`` an array of its shape, of any dtype
+    and layout (a ValueError for another shape, not memory read out of bounds): one flat loop over
+    ``src`` as a C array (itself, the usual case, else a C copy). The inner axes are short (d_n,
+    d_l, n_y), so nested loops over them cost more than the copy itself."""
+    if src.shape != dst.shape:
+        raise ValueError("a structure function returned an array of another shape")
+    s = np.ascontiguousarray(src).reshape(src.size)
+    d = dst.reshape(dst.size)
+    for i in range(d.size):
+        d[i] = s[i]

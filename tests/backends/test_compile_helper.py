@@ -132,13 +132,13 @@ def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
     assert not compile_helper.enabled()
 
 
-def test_a_helper_that_cannot_run_reports_failure():
+def test_a_helper_that_cannot_run_reports_failure(monkeypatch):
     """A helper whose model module does not exist exits non-zero, and :meth:`Helper.finish` says
     so. Catches: a finish() that reports success without looking at the exit status."""
     nope = type("Nope", (), {"__module__": "pfbench_no_such_module"})
     helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"]))
     assert helper.finish() is False
-    os.environ.pop(compile_helper.ENV, None)
+    monkeypatch.delenv(compile_helper.ENV, raising=False)
     if compile_helper.enabled():
         helper = compile_helper.start(nope, "particle", False, [("_pass_a", ())])
         assert helper is not None and helper.finish() is False
