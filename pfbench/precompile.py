@@ -23,7 +23,6 @@ environment finds it.
 """
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import asdict, dataclass
 
@@ -103,10 +102,12 @@ def compile_all(todo: list[Target], jobs: int | None = None, progress: bool = Tr
 
     from tqdm.auto import tqdm
 
+    from .procs import usable_cores
+
     groups: dict[str, list[Target]] = {}
     for t in todo:
         groups.setdefault(t.model, []).append(t)
-    jobs = max(1, min(int(jobs or os.cpu_count() or 1), len(groups)))
+    jobs = max(1, min(int(jobs or usable_cores()), len(groups)))
     done: dict[Target, dict] = {}
     with tqdm(total=len(todo), desc="compile", disable=not progress, file=sys.stderr, leave=False) as bar:
         if jobs == 1:

@@ -60,6 +60,15 @@ def die_with_parent(parent_pid: int) -> None:
                      daemon=True).start()
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity; ``os.cpu_count()`` where that is not
+    available): the default number of workers and threads."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
 def _init_worker(parent_pid: int, shared: bool, initializer: Callable | None, initargs: tuple) -> None:
     die_with_parent(parent_pid)
     if shared:  # the pool's workers already use the cores: no compile helpers on top of them

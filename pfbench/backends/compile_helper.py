@@ -36,15 +36,10 @@ import pickle
 import subprocess
 import sys
 
+from ..procs import usable_cores
+
 #: set to "0" to compile everything in the calling process
 ENV = "PFBENCH_COMPILE_HELPER"
-
-
-def usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
 
 
 def enabled() -> bool:

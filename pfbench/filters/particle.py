@@ -40,6 +40,7 @@ import numpy as np
 from .. import backends
 from ..backends.numpy_backend import BLOCK, block_streams
 from ..errors import InputError
+from ..procs import usable_cores
 from ..resampling import Scheme
 from .inputs import check_backend, check_dtype, ess_count, seed_sequence
 from .methods import Method
@@ -139,7 +140,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     code = int(Method.BOOTSTRAP if method == Method.MULTIPDF else method)  # MultiPDF sub-filters
     scheme = int(Scheme.parse(resampling))
     block = int(block or BLOCK)
-    workers = min(n_groups, n_threads or _cores())
+    workers = min(n_groups, n_threads or usable_cores())
     pooled = n_groups > 1 and backend == "numba" and workers > 1
     # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
     inner = 1 if (pooled or n_groups > 1) else n_threads
@@ -163,10 +164,3 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     return out, time.perf_counter() - t0
 
 
-def _cores() -> int:
-    import os
-
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover
-        return os.cpu_count() or 1

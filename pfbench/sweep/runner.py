@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError, PfbenchError
-from ..procs import exclusive_lock, worker_pool
+from ..procs import exclusive_lock, usable_cores, worker_pool
 from ..resources import path_error
 from .core import n_tasks, run_chunk, task_key, warm_up
 from .store import Store, check_store_name, export_parquet
@@ -54,13 +54,6 @@ def pending_units(spec: dict, store: Store) -> list[tuple[int, list[int]]]:
         if cis:
             units.append((r, cis))
     return units
-
-
-def cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover
-        return os.cpu_count() or 1
 
 
 class _Sigterm:
@@ -89,7 +82,7 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
     if scheduler:
         executor = "dask"
     if workers is None:
-        workers = cores()
+        workers = usable_cores()
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InputError(f"--workers must be an integer >= 1 (omit it to use all cores), got {workers!r}")
     check_store_name(out)

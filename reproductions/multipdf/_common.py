@@ -6,7 +6,7 @@ import time
 import numpy as np
 
 from pfbench.sweep import make_spec, run_sweep, summarize_frame
-from pfbench.sweep.runner import cores
+from pfbench.procs import usable_cores
 from pfbench.errors import PfbenchError
 from pfbench.sweep.store import Store, journal_path
 
@@ -17,7 +17,7 @@ OPTIONS = {"runs": (int, "Monte Carlo runs per configuration (see the recipe's q
 
 
 def workers(ctx) -> int:
-    return ctx.option("workers", cores(), int)
+    return ctx.option("workers", usable_cores(), int)
 
 
 def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_quick: int,

@@ -1,5 +1,6 @@
 """Paper-scale runs (`make test-slow`; not run by CI)."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -18,7 +19,8 @@ def test_full_recipe_writes_its_outputs_and_ledger(recipe_id, tmp_path):
     ctx = recipes.run(recipes.resolve(recipe_id), full=True, out_root=tmp_path, quiet=True)
     assert ctx.outputs and ctx.comparisons
     for out in ctx.outputs:
-        path = tmp_path / ctx.recipe.paper / out.rsplit("/", 1)[-1]
+        path = Path(out) if Path(out).is_absolute() else tmp_path / ctx.recipe.paper / out
+        assert tmp_path in path.parents, out  # written under --out, also in a subfolder (sweeps/)
         assert path.is_file() and path.stat().st_size > 0, out
         if path.suffix == ".csv":
             frame = pd.read_csv(path)

@@ -25,7 +25,6 @@ Batches of runs go to worker processes that die with their parent (:func:`pfbenc
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass, field
 
@@ -35,7 +34,7 @@ from ...backends.cache import njit
 from ...errors import PfbenchError
 from ...filters.inputs import ess_count
 from ...models.pmsm import Q_THETA_FILTER, Pmsm, jacobian, pmsm_step, wrap_angle
-from ...procs import worker_pool
+from ...procs import usable_cores, worker_pool
 from .cautious import cautious_control, cc_constants
 from .loss import FailureCriterion, estimation_failed, reference_speed, tracking_loss
 from .pi import PIGains, pi_dq_control
@@ -273,7 +272,7 @@ def run_batch(cfg: LoopConfig, n_runs: int, seed: int = 0, workers: int | None =
     """``n_runs`` closed-loop runs (run r uses streams SeedSequence([seed, r])) in worker
     processes. Returns arrays ``loss``, ``failed``, ``theta_err`` (final-window mean |error|),
     ``omega_err`` and the mean wall time per run step ``us_per_step``."""
-    workers = workers or min(2, os.cpu_count() or 1)
+    workers = workers or min(2, usable_cores())
     runs = list(range(int(n_runs)))
     chunk = max(1, min(25, len(runs) // (4 * workers) or 1))
     chunks = [runs[i:i + chunk] for i in range(0, len(runs), chunk)]
