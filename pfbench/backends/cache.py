@@ -339,8 +339,8 @@ _INSTALLED = False
 
 def install() -> None:
     """Put the package-keyed locator first in numba's list, use the constant-message shape error
-    (see the module docstring) and defer interrupts during compiles
-    (:mod:`pfbench.backends.interrupts`) (idempotent)."""
+    (see the module docstring), keep conditional moves in loops (:mod:`pfbench.backends.codegen`)
+    and defer interrupts during compiles (:mod:`pfbench.backends.interrupts`) (idempotent)."""
     global _INSTALLED
     if _INSTALLED:
         return
@@ -351,7 +351,10 @@ def install() -> None:
     if not any(getattr(c, "__name__", "") == "PackageKeyedLocator" for c in classes):
         classes.insert(0, _locator_class())
     constant_shape_error()
+    from .codegen import keep_selects
     from .interrupts import defer_during_compiles
+
+    keep_selects()
 
     defer_during_compiles()
     _INSTALLED = True
@@ -387,6 +390,7 @@ def njit(*args, **options):
 
     install()
     cache = options.pop("cache", True)
+    options.setdefault("no_cfunc_wrapper", True)
     if args and callable(args[0]) and len(args) == 1:
         return _healing(numba.njit(**options)(args[0]), cache)
     decorator = numba.njit(*args, **options)

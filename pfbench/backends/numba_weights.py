@@ -94,42 +94,61 @@ def block_weights(la, m, wu, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
     ``b``: w = exp(a - m), the block's running sum (cdf), and, when ``mom``, the block's sums of
     w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
 
-    Three kinds of loop over the block, each as fast as its dependences allow:
+    Two kinds of loop over the block, each as fast as its dependences allow:
 
     * the exponentials, a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
       LLVM vectorises; ``error_model="numpy"``: numba's zero-division check would stop the
       vectoriser);
     * the running sum, the one strictly sequential chain (the cdf feeds the resampling, so it is
-      the NumPy reference's ``cumsum`` order, one add after the other), with sum w^2 beside it;
-    * the moments (which feed nothing back), both sums of a state component in one pass, with four
-      partial sums each in registers (:func:`_sums4`): a sum accumulated in the ``bsx`` array
-      itself waits on a store and a reload every particle (measured on Ob1: the pass took 8.6 ns
-      per particle-step that way, exp 2.4 ns of it).
+      the NumPy reference's ``cumsum`` order, one add after the other). It waits one add's latency
+      per particle, so the other sums ride along in the same loop for free: sum w^2 and the first
+      state component's two moment sums (measured on Ob1, N_p = 1000: pass B 3.6 ns per
+      particle-step with the moments in a loop of their own, 2.9 ns beside the running sum). Each
+      sum is a register, never the ``bsx`` array (a sum accumulated in memory waits on a store and
+      a reload every particle: 8.6 ns). Further components get a pass of their own with four
+      partial sums (:func:`_sums4`). The moments feed nothing back (estimates only), so their
+      order is free.
+
+    The loops run over views of the block that start at 0 (see "Fused passes" in
+    :mod:`pfbench.backends.numba_particle`): indexed from the run-time ``i0``, the exponentials
+    compiled to gathers and scatters.
     """
     n_x = xs.shape[1]
-    for i in range(i0, i1):
-        wu[i] = exp_scalar(la[i] - m)
+    a = la[i0:i1]  # views that start at 0 (see above)
+    w = wu[i0:i1]
+    cb = cdf[i0:i1]
+    x = xs[i0:i1]
+    for k in range(w.shape[0]):
+        w[k] = exp_scalar(a[k] - m)
     acc = 0.0
     s2 = 0.0
-    for i in range(i0, i1):
-        w = wu[i]
-        acc += w
-        cdf[i] = acc
-        s2 += w * w  # a second chain beside the first: free
+    sx = 0.0
+    sxx = 0.0
+    shift = np.float64(xs[0, 0])
+    for k in range(w.shape[0]):
+        wk = w[k]
+        acc += wk
+        cb[k] = acc
+        s2 += wk * wk  # chains beside the first: free
+        v = np.float64(x[k, 0])
+        d = v - shift
+        sx += wk * v
+        sxx += wk * (d * d)
     bsum[b] = acc
     bs2[b] = s2 if mom else 0.0
-    if mom:
-        for c in range(n_x):
-            bsx[b, c], bsxx[b, c] = _sums4(wu, xs[:, c], i0, i1, np.float64(xs[0, c]))
-    else:
-        for c in range(n_x):
+    bsx[b, 0] = sx if mom else 0.0
+    bsxx[b, 0] = sxx if mom else 0.0
+    for c in range(1, n_x):
+        if mom:
+            bsx[b, c], bsxx[b, c] = _sums4(w, x[:, c], np.float64(xs[0, c]))
+        else:
             bsx[b, c] = 0.0
             bsxx[b, c] = 0.0
 
 
 @register_jitable
-def _sums4(w, v, i0, i1, shift):
-    """(sum w_i v_i, sum w_i (v_i - shift)^2) over [i0, i1) in one pass over ``w`` and ``v``, each
+def _sums4(w, v, shift):
+    """(sum w_i v_i, sum w_i (v_i - shift)^2) over the block in one pass over ``w`` and ``v``, each
     with four partial sums so the adds do not wait on each other (the order differs from a plain
     loop in the last bits: the estimates, which feed nothing back)."""
     s0 = 0.0
@@ -140,8 +159,9 @@ def _sums4(w, v, i0, i1, shift):
     q1 = 0.0
     q2 = 0.0
     q3 = 0.0
-    i = i0
-    while i + 4 <= i1:
+    n = w.shape[0]
+    i = 0
+    while i + 4 <= n:
         v0 = np.float64(v[i])
         v1 = np.float64(v[i + 1])
         v2 = np.float64(v[i + 2])
@@ -163,7 +183,7 @@ def _sums4(w, v, i0, i1, shift):
         q2 += w2 * (d2 * d2)
         q3 += w3 * (d3 * d3)
         i += 4
-    while i < i1:
+    while i < n:
         v0 = np.float64(v[i])
         d0 = v0 - shift
         s0 += w[i] * v0

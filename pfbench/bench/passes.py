@@ -98,7 +98,7 @@ def _harnesses(mod):
             for s in range(0, n, tile):
                 e = min(s + tile, n)
                 a = tile64(xs, s, e, bin_)  # as pass A does (storing back the values it read)
-                c = store(xs, s, a, bout)
+                c = store(xs[s:e], a, bout)
                 acc += c[0, 0]
         return acc
 

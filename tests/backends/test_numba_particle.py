@@ -53,6 +53,35 @@ def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
         np.testing.assert_array_equal(lam_dst, expect * 10.0 if with_lam else 0.0)
 
 
+@pytest.mark.parametrize("n", [7, 1000, 1024, 4099])
+def test_merge_gather_is_exact_where_counts_sit_next_to_positions(kernel, n):
+    """Systematic resampling takes each count K_j from cdf[j] n / total - u without the positions
+    unless that lies within a rounding bound of an integer. Here every cdf value sits a few ulps
+    from a position (and the last at the total), so the computed estimate is wrong in the last
+    place for many j: the exact path must take over. Catches a bound that is too small (0 or one
+    rounding), positions not computed before the corrections that need them, and an estimate
+    trusted after the flag is set. 1-3 output blocks."""
+    rng = np.random.default_rng(n)
+    for trial in range(40):
+        u = [0.0, 0.5, rng.random(), 1e-13, 1 - 1e-13][trial % 5]
+        total = float(n) if trial % 2 else rng.uniform(1.0, 1e6)
+        pos = (u + np.arange(n)) / n * total
+        at = np.sort(rng.integers(0, n, n - 1))
+        cdf = np.empty(n)
+        cdf[:-1] = pos[at] * (1.0 + rng.integers(-4, 5, n - 1) * 2.0 ** -52)
+        cdf[:-1] = np.minimum(np.maximum.accumulate(cdf[:-1]), total)
+        cdf[-1] = total
+        expect = np.minimum(np.searchsorted(cdf, pos, side="right"), n - 1)
+        src = np.arange(n, dtype=np.float64).reshape(n, 1)
+        dst = np.full_like(src, -1.0)
+        lam = np.zeros(n)
+        bounds = np.unique(np.r_[0, np.sort(rng.integers(1, n + 1, trial % 3)), n])
+        for i0, i1 in zip(bounds[:-1], bounds[1:]):
+            kernel._merge_gather(cdf, n, u, np.empty(0), False, int(i0), int(i1), src, dst, lam, lam, False,
+                                 np.empty(n, np.int64), np.full(n, np.nan), np.empty(n, np.int64))
+        np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
+
+
 def test_column_major_tiles_follow_the_instance_dimensions():
     """Tiles are typed column-major only for an instance with one state and one noise component.
     ``linear_gaussian`` takes its dimensions from its matrices while its class keeps the defaults

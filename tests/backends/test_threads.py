@@ -96,10 +96,9 @@ def test_single_block_runs_keep_the_single_stream_numbers(scheme, backend):
     r = pfbench.run_filter(model, traj.y, method="bootstrap", n_particles=1000, resampling=scheme,
                            backend=backend, seed=3)
     assert r.loglik == PINNED[scheme][0]
-    if backend == "numba":  # the numba mean (four partial sums, pass B) bit for bit
-        assert r.estimates[-1, 0] == PINNED[scheme][1]
-    else:  # the NumPy mean is a BLAS dot product (its own summation order)
-        assert r.estimates[-1, 0] == pytest.approx(PINNED[scheme][1], rel=1e-12)
+    # the mean feeds nothing back, and each backend sums it in its own order (numba: beside the
+    # running sum in pass B; NumPy: a BLAS dot product), so it is the same to rounding
+    assert r.estimates[-1, 0] == pytest.approx(PINNED[scheme][1], rel=1e-12)
 
 
 def test_multi_block_filter_tracks_the_kalman_mean():
