@@ -18,6 +18,11 @@ into the same disk cache (:mod:`pfbench.backends.cache`: one cache per installat
 process compiles the driver; :meth:`Helper.finish` waits for it, and this process then loads
 the functions from disk.
 
+What the helper takes is the caller's choice (``here`` of
+:func:`pfbench.backends.numba_backend.native_addresses`): the particle kernel hands it pass A,
+the Kalman driver its step math, the MPF driver the model's functions and the wrappers that call
+them, keeping the model-free steps that balance the two cores.
+
 The helper only ever saves time. Whatever goes wrong there (the model's module cannot be
 imported in a new process, a compile error, a crash, a kill) leaves no cache entry, and this
 process compiles the functions itself, raising any error exactly as it would without a helper. A
@@ -110,12 +115,14 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
 
 
 #: the helper's program: this process's import path, then :func:`_main` with the spec (which
-#: holds numba types: unpickled once the path is set)
-_BOOT = ("import pickle, sys\n"
+#: holds numba types: unpickled once the path is set). It ends with ``os._exit``: the cache files
+#: are written and closed by then, and the interpreter's teardown (numba's and LLVM's objects) took
+#: 0.2 s that the waiting process would sit through
+_BOOT = ("import os, pickle, sys\n"
          "path, spec = pickle.loads(sys.stdin.buffer.read())\n"
          "sys.path[:] = path\n"
          "from pfbench.backends.compile_helper import _main\n"
-         "sys.exit(_main(pickle.loads(spec)))\n")
+         "os._exit(_main(pickle.loads(spec)))\n")
 
 
 def _main(spec: dict) -> int:

@@ -304,31 +304,37 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
             driver(*args)
 
 
-def native_addresses(model, family: str, mod, driver, args, calls, *, f_tiles: bool = False) -> list:
+def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f_tiles: bool = False) -> list:
     """The native entry addresses of the functions ``driver`` calls by address
-    (:mod:`pfbench.backends.native_call`): ``calls`` lists ``(name, argument types, return type)`` of
-    functions of the kernel module ``mod`` that do not depend on the scheme: the ones that inline
-    the model (:data:`SCHEME_FREE`), or model-free ones it imports (the Kalman driver's step
-    math). When they and the driver (called with ``args``, the addresses' places holding ints)
-    are all cold, a helper process compiles them while this one compiles the driver
-    (:mod:`pfbench.backends.compile_helper`)."""
-    funcs = [(getattr(mod, name), argtypes, restype) for name, argtypes, restype in calls]
+    (:mod:`pfbench.backends.native_call`), in the order of ``calls``: ``(name, argument types, return
+    type)`` of functions of the kernel module ``mod`` that do not depend on the scheme: the ones that
+    inline or call the model (:data:`SCHEME_FREE`, the model's own functions), or model-free ones
+    it imports (step math). A return type of None means "known once compiled": such a function is
+    only called by functions listed after it, which are compiled after it. When the driver (called
+    with ``args``, the addresses' places holding ints) and any of the functions not named in
+    ``here`` are cold, a helper process compiles those functions while this one compiles the driver
+    and then the ones in ``here`` (:mod:`pfbench.backends.compile_helper`)."""
+    funcs = [(name, getattr(mod, name), argtypes, restype) for name, argtypes, restype in calls]
+    away = [(name, f, a) for name, f, a, _ in funcs if name not in here]
     with _LOCK:  # threads of one process start one helper, not one each
-        for func, argtypes, restype in funcs:
-            native_call.declare(func, argtypes, restype)
-        if compile_helper.enabled() and all(compile_helper.cold(f, a) for f, a, _ in funcs):
+        for _, func, argtypes, restype in funcs:
+            if restype is not None:
+                native_call.declare(func, argtypes, restype)
+        if compile_helper.enabled() and any(compile_helper.cold(f, a) for _, f, a in away):
             sig = tuple(driver.typeof_pyval(a) for a in args)
             if compile_helper.cold(driver, sig):
-                helper = compile_helper.start(type(model), family, f_tiles,
-                                              [(name, argtypes) for name, argtypes, _ in calls])
+                helper = compile_helper.start(type(model), family, f_tiles, [(name, a) for name, _, a in away])
                 if helper is not None:
                     try:
                         driver.compile(sig)
+                        for name, f, a, _ in funcs:
+                            if name in here:
+                                native_call.entry_address(f, a)
                     except BaseException:  # Ctrl-C (delivered when the compile ends) or an error
                         helper.kill()
                         raise
                     helper.finish()
-        return [native_call.entry_address(f, a) for f, a, _ in funcs]
+        return [native_call.entry_address(f, a) for _, f, a, _ in funcs]
 
 
 def _raised_in_parallel(exc: SystemError) -> BaseException:

@@ -11,8 +11,9 @@ shares one compilation of them); ``kalman_predict`` is ``sandwich``, ``condition
 versions (:mod:`pfbench.backends.numba_weights`, :mod:`pfbench.backends.numba_resampling`, the
 scheme bound as ``_resample``). The model is called through the module globals
 ``_cl_transition``, ``_cl_observation`` and ``_cl_constrain`` (placeholders here), once per step
-on all particles: :func:`run` through three wrappers called by address (see "the model's calls"
-below), :func:`run_linear` directly (it calls the step math by address instead).
+on all particles: :func:`run` through three wrappers called by address, which call the model
+by address in turn (see "the model's calls" below), :func:`run_linear` directly (it calls the
+step math by address instead).
 :func:`pfbench.backends.numba_backend.kernel_module` writes a copy of this file per model class
 with the model's compiled functions bound to those names, so numba caches the whole kernel on
 disk.
@@ -34,13 +35,27 @@ from pfbench.backends.numba_mpf_steps import mixture_moments as _mixture_moments
 from pfbench.backends.numba_mpf_steps import sandwich as _sandwich
 from pfbench.backends.numba_mpf_steps import time_update as _time_update
 from pfbench.backends.numba_mpf_steps import copy_into as _copy_into
+from pfbench.backends.numba_mpf_steps import normals_into as _normals_into
 from pfbench.backends.native_call import caller as _caller
 
-_call3 = _caller(3)
-_call7 = _caller(7)
+_call2 = _caller(2)
+_call4 = _caller(4)
+_call5 = _caller(5)
 _call8 = _caller(8)
+_call9 = _caller(9)
 _call12 = _caller(12)
 _call15 = _caller(15)
+_call19 = _caller(19)
+
+#: the functions :func:`run` calls by address, in the order of its ``addresses`` (their argument
+#: types: ``pfbench.filters.marginalized._run_calls``): the model's functions, the wrappers that
+#: call them, then the step math
+RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_into", "_observation_into",
+             "_constrain_into", "_normals_into", "_sandwich", "_condition", "_time_update", "_kalman_update", "_weigh",
+             "_moments", "_mixture_moments")
+(_A_CL_TRANSITION, _A_CL_OBSERVATION, _A_CL_CONSTRAIN, _A_TRANSITION, _A_OBSERVATION, _A_CONSTRAIN, _A_NORMALS,
+ _A_SANDWICH, _A_CONDITION, _A_TIME_UPDATE, _A_KALMAN_UPDATE, _A_WEIGH, _A_MOMENTS,
+ _A_MIXTURE_MOMENTS) = range(len(RUN_CALLS))
 
 
 def _cl_transition(xn, u, t, p):  # pragma: no cover - bound per model
@@ -65,35 +80,38 @@ def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by ke
 # :mod:`pfbench.backends.numba_backend`), not again inside every driver, and on a cold cache in a
 # helper process while the driver compiles here (:mod:`pfbench.backends.compile_helper`). Each
 # copies the model's arrays into the kernel's float64 C arrays of the declared shapes (a ValueError
-# for other shapes), so the drivers and the step math see one array type for every model.
-@_njit(nogil=True)
-def _transition_into(xn, u, t, p, fn, An, fl, Al):
+# for other shapes), so the drivers and the step math see one array type for every model. They
+# call the model's function by address too (``model_address``), so its code is compiled once, in
+# its own function, not again inside each wrapper (measured: 0.9 s of a cold Ob5 start). None of
+# them is called from Python (``no_cpython_wrapper``: 0.03-0.05 s less to compile each).
+@_njit(nogil=True, no_cpython_wrapper=True)
+def _transition_into(xn, u, t, p, fn, An, fl, Al, model_address):
     """``cl_transition(xn, u, t, p)`` into f^n, A^n, f^l, A^l."""
-    a, b, c, d = _cl_transition(xn, u, t, p)
+    a, b, c, d = _call4(_cl_transition, model_address, xn, u, t, p)
     _copy_into(a, fn)
     _copy_into(b, An)
     _copy_into(c, fl)
     _copy_into(d, Al)
 
 
-@_njit(nogil=True)
-def _observation_into(xn, xl, u, t, p, h, C):
+@_njit(nogil=True, no_cpython_wrapper=True)
+def _observation_into(xn, xl, u, t, p, h, C, model_address):
     """``cl_observation(xn, xl, u, t, p)`` into h, C."""
-    a, b = _cl_observation(xn, xl, u, t, p)
+    a, b = _call5(_cl_observation, model_address, xn, xl, u, t, p)
     _copy_into(a, h)
     _copy_into(b, C)
 
 
-@_njit(nogil=True)
-def _constrain_into(xn, p, out):
+@_njit(nogil=True, no_cpython_wrapper=True)
+def _constrain_into(xn, p, out, model_address):
     """``cl_constrain(xn, p)`` into ``out``."""
-    _copy_into(_cl_constrain(xn, p), out)
+    _copy_into(_call2(_cl_constrain, model_address, xn, p), out)
 
 
 # --------------------------------------------------------------------------- entry points
 @_njit(nogil=True)
 def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet, m0, P0, scheme,
-        est, cov, ess, inc, degen, transition_address, observation_address, constrain_address):
+        est, cov, ess, inc, degen, addresses):
     """Run the MPF over all steps from the initial x^n particles ``xn`` (n, d_n), C-contiguous
     float64, updated in place (one random stream, documented order).
 
@@ -105,9 +123,18 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
     indices of x^n/x^l (d_n > 0; :func:`run_linear` serves d_n = 0); the noise and whitening
     arrays as prepared by ``pfbench.filters.marginalized.structure``; ``scheme`` a
     :class:`~pfbench.resampling.Scheme` code. Fills est (M, n_x), cov (M, n_x, n_x), ess, inc,
-    degen (M,). The three addresses: :func:`_transition_into`, :func:`_observation_into` and
-    :func:`_constrain_into` compiled for the argument types of their calls here
+    degen (M,). ``addresses``: the native entry points of the functions in :data:`RUN_CALLS`,
+    in that order, compiled for the argument types of their calls here
     (:func:`pfbench.backends.native_call.entry_address`).
+
+    Everything it calls per step goes by address, the model's wrappers and the step math alike:
+    this function then compiles as a loop of calls (numba links a directly called function into
+    the caller's module and optimises and emits it there once more), and a cold start compiles
+    the pieces on two cores (:func:`pfbench.backends.numba_backend.native_addresses`). Measured
+    (Ob5, fresh caches, one process): the first run 10.5 s with the step math compiled into this
+    function, 8.3 s by address; a cold ``pfbench run --model ob5 --method mpf`` 6.7 s before,
+    5.3 s after, with the helper (same machine, same session). What it costs at run time: 260-268 vs 271-276 ns per particle-step (N_p = 1000,
+    300 steps, alternating processes, the same estimates to the bit), about 4 %.
 
     Per step ([Schon2005] Alg. 1): the x^n noise, the model's ``cl_transition``, steps 1-2
     (``sandwich``, ``condition``, ``time_update``), step 3 (``cl_constrain``), step
@@ -126,6 +153,7 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
             for b in range(d_l):
                 P[i, a, b] = P0[a, b]
     xnew = _np.empty((n, d_n))
+    z = _np.empty((n, d_n))
     APn = _np.empty((n, d_n, d_l))
     N = _np.empty((n, d_n, d_n))
     L = _np.empty((n, d_n, d_n))
@@ -163,20 +191,25 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
     var_l = _np.empty(d_l)
     for t in range(y.shape[0]):
         ut = u[t]
-        z = rng.standard_normal((n, d_n))
-        _call8(_transition_into, transition_address, xn, ut, t, p, fn, An, fl, Al)
-        _sandwich(An, P, Qn, APn, N)
-        _condition(fn, An, fl, Al, m, P, z, N, APn, T, corr, L, w, V, xnew, mm, Pm, f, A)
-        _time_update(f, A, mm, Pm, Ql, APl, m_pred, P_pred)
-        _call3(_constrain_into, constrain_address, xnew, p, xs)
-        _call7(_observation_into, observation_address, xs, m_pred, ut, t, p, h, C)
-        _kalman_update(h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet, h0, H, PH, ll, mm, Pm)
-        mx, total, deg = _weigh(lw, ll, wu, cdf)
+        _call2(_normals_into, addresses[_A_NORMALS], rng, z)
+        _call9(_transition_into, addresses[_A_TRANSITION], xn, ut, t, p, fn, An, fl, Al,
+               addresses[_A_CL_TRANSITION])
+        _call5(_sandwich, addresses[_A_SANDWICH], An, P, Qn, APn, N)
+        _call19(_condition, addresses[_A_CONDITION], fn, An, fl, Al, m, P, z, N, APn, T, corr, L, w, V, xnew, mm,
+                Pm, f, A)
+        _call8(_time_update, addresses[_A_TIME_UPDATE], f, A, mm, Pm, Ql, APl, m_pred, P_pred)
+        _call4(_constrain_into, addresses[_A_CONSTRAIN], xnew, p, xs, addresses[_A_CL_CONSTRAIN])
+        _call8(_observation_into, addresses[_A_OBSERVATION], xs, m_pred, ut, t, p, h, C,
+               addresses[_A_CL_OBSERVATION])
+        _call15(_kalman_update, addresses[_A_KALMAN_UPDATE], h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet, h0,
+                H, PH, ll, mm, Pm)
+        mx, total, deg = _call4(_weigh, addresses[_A_WEIGH], lw, ll, wu, cdf)
         degen[t] = deg
         inc[t] = -_np.inf if deg else mx + _np.log(total)
-        ess[t] = _moments(xs, wu, total, mean_n, var_n)
-        _moments(mm, wu, total, mean_l, var_l)
-        _mixture_moments(wu, total, mean_n, mean_l, xs, mm, Pm, idx_n, idx_l, dev, est[t], cov[t])
+        ess[t] = _call5(_moments, addresses[_A_MOMENTS], xs, wu, total, mean_n, var_n)
+        _call5(_moments, addresses[_A_MOMENTS], mm, wu, total, mean_l, var_l)
+        _call12(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], wu, total, mean_n, mean_l, xs, mm, Pm, idx_n, idx_l,
+                dev, est[t], cov[t])
         _resample(scheme, wu, cdf, rng, idx)
         for i in range(n):
             j = idx[i]

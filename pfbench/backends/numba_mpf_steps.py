@@ -9,18 +9,21 @@ rounding: :func:`sandwich` (``sandwich``), :func:`condition` (``cholesky_batch``
 than array expressions (each of which becomes a broadcast loop with a temporary). They call no
 model function, so they live here, in an ordinary cached module, and are compiled once per process
 (loaded from disk after that) for every model and scheme, not once per generated kernel module.
-Each is a function of its own, called by the kernel's entry points directly: a compiled function
-costs a fixed ~0.2 s, and every caller optimises the machine code of all it calls once more, so
-they are few and call nothing but :func:`sandwich`. :func:`copy_into` copies what the model's
-structure functions return into the kernel's own arrays.
+Each is a function of its own, which the kernel's drivers call by address
+(:mod:`pfbench.backends.native_call`): every caller would otherwise optimise and emit the machine
+code of all it calls once more. They are few (a compiled function costs a fixed 0.05-0.2 s) and
+call nothing but :func:`sandwich` and, in :func:`normals_into`, the engine's normal draws. None is
+called from Python (``no_cpython_wrapper``), except :func:`copy_into`, which copies what the
+model's structure functions return into the kernel's own arrays.
 """
 import numpy as np
 
 from pfbench.backends.cache import njit
+from pfbench.backends.pcg64 import fill_normals
 from pfbench.models.base import LOG_2PI
 
 
-@njit(nogil=True)
+@njit(nogil=True, no_cpython_wrapper=True)
 def sandwich(A, P, Q, AP, S):
     """Per particle: ``AP`` = A P and ``S`` = A P A' + Q, written into AP (n, d_out, d_in) and S
     (n, d_out, d_out), for A (n, d_out, d_in), P (n, d_in, d_in), Q (d_out, d_out): N = A^n P A^n'
@@ -44,7 +47,7 @@ def sandwich(A, P, Q, AP, S):
                 S[i, a, b] = acc
 
 
-@njit(nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
 def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f, A):
     """[Schon2005] Alg. 1 steps 1-2 up to the time update, for d_n > 0, per particle: the lower
     Cholesky factor ``L`` of N = A^n P A^n' + Q^n (pivots floored at 1e-300; the upper triangle
@@ -114,7 +117,7 @@ def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f,
                 A[i, a, b] = acc
 
 
-@njit(nogil=True)
+@njit(nogil=True, no_cpython_wrapper=True)
 def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
     """The linear-Gaussian time update of [Schon2005] Alg. 1 step 2: ``m_pred`` = f + A m and
     ``P_pred`` = A P A' + Q per particle (``AP`` (n, d_l, d_l) scratch). With d_n = 0 this is the
@@ -131,7 +134,7 @@ def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
     sandwich(A, P, Q, AP, P_pred)
 
 
-@njit(nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
 def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, ll, m, P):
     """[Schon2005] Alg. 1 step 4: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll`` (n,) and the
     measurement update into ``m`` (n, d_l), ``P`` (n, d_l, d_l); ``h0`` (n_y,), ``H`` (n_y, d_l),
@@ -184,7 +187,7 @@ def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, l
         ll[i] = lli
 
 
-@njit(nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
 def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est, cov):
     """[Schon2005] Alg. 1 step 5: the full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x,
     n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, given the
@@ -234,3 +237,11 @@ def copy_into(src, dst):
     d = dst.reshape(dst.size)
     for i in range(d.size):
         d[i] = s[i]
+
+
+@njit(nogil=True, no_cpython_wrapper=True)
+def normals_into(rng, out):
+    """``out`` (float64, C order) filled with the numbers ``rng.standard_normal(out.shape)`` gives
+    (:func:`pfbench.backends.pcg64.fill_normals`): the MPF's x^n noise, a function of its own so that
+    the driver calls it by address instead of compiling the draws into itself."""
+    fill_normals(rng, out)

@@ -54,7 +54,8 @@ tr = m.simulate(15, seed=1)
 r = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3)
 mod = numba_backend.kernel_module(m, "mpf", "systematic")
 out["mpf"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
-                              for f in (mod._transition_into, mod._observation_into, mod._constrain_into)],
+                              for f in (mod._cl_transition, mod._cl_observation, mod._cl_constrain,
+                                        mod._transition_into, mod._observation_into, mod._constrain_into)],
               "driver_misses": sum(mod.run.stats.cache_misses.values()),
               "driver_defines": re.findall(r"define [^@]*@(\S+)\(", mod.run.inspect_llvm(mod.run.signatures[0])),
               "started": list(started), "est": r.estimates.tolist()}
@@ -75,9 +76,10 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     * The Kalman filter on the linear-Gaussian model: the helper compiles the step math its
       driver calls, this process loads it (hits) and compiles the driver with the model inlined;
       the driver's code defines none of the steps. Catches: steps called directly.
-    * The MPF on Ob5 (three nonlinear states): the helper compiles the kernel's three calls of
-      the model, this process loads them (hits, no miss) and compiles the driver, whose code
-      defines none of the model's functions. Catches: a driver calling the model directly.
+    * The MPF on Ob5 (three nonlinear states): the helper compiles the model's three functions
+      and the kernel's three wrappers that call them, this process loads them (hits, no miss) and
+      compiles the driver, whose code defines none of them and none of the step math (called by
+      address). Catches: a driver calling the model, a wrapper or a step directly.
 
     Every run gives the estimates of the same run in this (test) process, bit for bit."""
     from pfbench.filters.run import run_filter
@@ -103,9 +105,10 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     tr = m.simulate(15, seed=1)
     np.testing.assert_array_equal(np.asarray(kal["est"]), run_filter(m, tr.y, tr.u, method="kalman").estimates)
     mpf = got.pop("mpf")
-    assert mpf["model_calls"] == [[1, 0]] * 3 and mpf["driver_misses"] == 1
+    assert mpf["model_calls"] == [[1, 0]] * 6 and mpf["driver_misses"] == 1
     assert any("run" in d for d in mpf["driver_defines"])
-    assert not any("cl_" in d or "_into" in d for d in mpf["driver_defines"])  # the model is not in it
+    steps = ("cl_", "_into", "sandwich", "condition", "time_update", "kalman_update", "weigh", "moments", "normals")
+    assert not any(k in d for d in mpf["driver_defines"] for k in steps)  # the model and the steps are not in it
     assert mpf["started"] == ["Ob1", "Ob2", "LinearGaussian", "Ob5"]
     m = get("ob5")
     tr = m.simulate(15, seed=1)
