@@ -75,13 +75,15 @@ in NumPy >= 2), so a float32 model evaluation would differ between the backends 
 inside numba; computing in float64 and storing float32 keeps the backends in agreement. What
 float32 then buys is half the particle memory and a float32 draw; what it costs is the tile
 conversions. Measured (``pfbench bench``'s float32 vs float64 kernel parts, Ob1 bootstrap, 1
-thread, N_p = 10^5, paired per round, 2-core AMD EPYC): draws 3.6 vs 3.7 ns (the ziggurat's
+thread, N_p = 10^5, paired per round, 2-core AVX-512 Xeon): draws 3.6 vs 3.7 ns (the ziggurat's
 table lookups and rejection test cost the same in both widths, and the 128-bit PCG64 step that
-float32 halves is not the bottleneck), tile in/out 0.5 vs 0.6, model 1.7 vs 1.7, whole filter
-22.1 vs 22.7 ns per particle-step (1.04x). The step is bound by arithmetic and branches, not by
-memory (10^5 float64 particles are 0.8 MB, cache-resident), so halving storage cannot pay more
-until the models are written dtype-generic (float32 literals), as the Cortex-M compiler already
-does for ``--precision float`` (:mod:`pfbench.mcu.modelcode`).
+float32 halves is not the bottleneck), tile in/out 0.4 vs 0.7, model 2.8 vs 2.6, pass B 2.8 vs
+3.1 (the moments convert the stored states), whole filter 12.9 vs 13.9 ns per particle-step
+(0.93x: the faster the float64 kernel, the more the conversions weigh; 1.04x when it took 22 ns).
+The step is bound by arithmetic and branches, not by memory (10^5 float64 particles are 0.8 MB,
+cache-resident), so halving storage cannot pay more until the models are written dtype-generic
+(float32 literals), as the Cortex-M compiler already does for ``--precision float``
+(:mod:`pfbench.mcu.modelcode`).
 """
 import numba as _numba
 import numpy as _np
