@@ -282,16 +282,18 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     work = work_arrays(x, bounds.shape[0] - 1)
     args = [p, rng, brngs, y, u, x, int(model.n_noise), int(method),
             int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
-            *work, 0]
+            *work, 0, 0, 0]
     parallel = len(brngs) > 1 and n_threads != 1
     driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
         import numba
 
-        args[-1], = native_addresses(model, "particle", mod, driver, args,
-                                     [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64)],
-                                     f_tiles=column_major_tiles(model))
+        args[-3:] = native_addresses(model, "particle", mod, driver, args,
+                                     [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64),
+                                      ("_pass_b", pass_b_types(work), numba.types.none),
+                                      ("_merge_gather", merge_types(work), numba.types.none)],
+                                     here=("_pass_b", "_merge_gather"), f_tiles=column_major_tiles(model))
         if parallel:
             k = min(int(n_threads or numba.config.NUMBA_NUM_THREADS), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
@@ -361,6 +363,31 @@ def pass_a_types(p, rng, y, u, work) -> tuple:
     row = numba.typeof(fwork[0])
     return (numba.typeof(p), numba.typeof(rng), numba.typeof(y[0]), numba.typeof(u[0]), i,
             numba.typeof(xs[0, 0]), i, i, i, numba.typeof(lw[0]), b, numba.types.float64, b, row, b, row, row)
+
+
+def pass_b_types(work) -> tuple:
+    """The numba types of the arguments the particle kernel's driver passes to pass B
+    (:func:`pfbench.backends.numba_weights.block_weights`)."""
+    import numba
+
+    xs, fwork, bwork, bmom = work[0], work[2], work[4], work[5]
+    i, b, f = numba.types.int64, numba.types.boolean, numba.types.float64
+    row, part = numba.typeof(fwork[0]), numba.typeof(xs[0, 0])
+    brow, bm = numba.typeof(bwork[0]), numba.typeof(bmom[0])
+    return (row, f, row, row, part, i, i, b, i, brow, brow, bm, bm)
+
+
+def merge_types(work) -> tuple:
+    """The numba types of the arguments the particle kernel's driver passes to pass C
+    (:func:`pfbench.backends.numba_resampling.merge_gather`): the running sum, N_p, the uniform,
+    a block's stratified uniforms, the flag, the block bounds, one filter's two particle buffers,
+    the two lambda rows, the flag and the scratch rows."""
+    import numba
+
+    xs, fwork, iwork = work[0], work[2], work[3]
+    i, b, f = numba.types.int64, numba.types.boolean, numba.types.float64
+    row, irow, part = numba.typeof(fwork[0]), numba.typeof(iwork[0]), numba.typeof(xs[0, 0])
+    return (row, i, f, row, b, i, i, part, part, row, row, b, irow, row, irow)
 
 
 def work_arrays(x, n_blocks: int) -> tuple:

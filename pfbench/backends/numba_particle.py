@@ -40,11 +40,14 @@ and are compiled once per process (and loaded from disk after that) for every mo
 Pass A inlines the model; it does not depend on the scheme, so a scheme's module binds the
 ``_pass_a`` of the model's any-scheme module (``SCHEME_FREE`` in
 :mod:`pfbench.backends.numba_backend`), and the schemes of a model share one compilation of it.
-The driver calls pass A through its native entry point (:mod:`pfbench.backends.native_call`), so
-numba does not compile pass A and the model into the driver again (passes B and C stay direct
-calls: through their addresses they cost about 0.5 ns per particle-step at N_p = 1000). So the
-driver compiles without pass A's code, and a cold kernel compiles pass A in a helper process on
-a second core meanwhile (:mod:`pfbench.backends.compile_helper`).
+The driver calls all three passes through their native entry points
+(:mod:`pfbench.backends.native_call`), so numba does not compile them (and the model) into the
+driver again: the driver is the loop over steps, filters and blocks. A cold kernel compiles pass
+A in a helper process on a second core meanwhile (:mod:`pfbench.backends.compile_helper`), passes
+B and C here after the driver. Measured (Ob1, fresh caches, one process): the driver 3.8 s with
+passes B and C compiled into it, 1.9 s without (so 1.9 s less for every further model or scheme
+once B and C are on disk); at run time 12.4-12.8 vs 12.2-12.6 ns per particle-step (N_p = 1000,
+marginal cost of 2000 steps), the same within the noise.
 
 Stream blocks and threads
 -------------------------
@@ -116,6 +119,9 @@ _F_TILES = False
 _prange = _numba.prange
 #: pass A called through its address (:mod:`pfbench.backends.native_call`)
 _call_a = _caller(17)
+#: passes B and C (systematic/stratified) called through their addresses
+_call_b = _caller(13)
+_call_c = _caller(15)
 
 
 def _transition(x, u, t, noise, p):  # pragma: no cover - bound per model
@@ -363,7 +369,8 @@ def _max(a, m):
 
 
 def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,
-               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate, pass_a_address):
+               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate, pass_a_address,
+               pass_b_address, merge_address):
     """Run a group of G independent filters over all steps (random streams in documented order).
 
     x: (G, n, n_x) particle buffer (its dtype is the particle dtype) holding the initial particles
@@ -376,9 +383,11 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
     count. xs ... gstate: work arrays (:func:`pfbench.backends.numba_backend.work_arrays`), allocated
     by the caller because every array constructor compiled here is another 0.1 s of a cold start.
-    pass_a_address: the native entry point of ``_pass_a`` for the argument types of its call here
-    (:func:`pfbench.backends.numba_backend.pass_a_types`, :mod:`pfbench.backends.native_call`):
-    the driver calls pass A, the model inlined, without compiling it into itself again.
+    pass_a_address, pass_b_address, merge_address: the native entry points of ``_pass_a``,
+    ``_pass_b`` and ``_merge_gather`` for the argument types of their calls here
+    (:func:`pfbench.backends.numba_backend.pass_a_types`, ``pass_b_types``, ``merge_types``;
+    :mod:`pfbench.backends.native_call`): the driver calls the passes without compiling them into
+    itself again.
     """
     G = x.shape[0]
     n = x.shape[1]
@@ -428,16 +437,17 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                         if la[i] > m:
                             m = la[i]
                 for b in _prange(nb):
-                    _pass_b(la, m, wu, cdf, src, bounds[b], bounds[b + 1], not fs, b, bsum, bs2, bsx,
-                            bsxx)
+                    _call_b(_pass_b, pass_b_address, la, m, wu, cdf, src, bounds[b], bounds[b + 1], not fs,
+                            _np.int64(b), bsum, bs2, bsx, bsxx)  # b: unsigned in a prange
                 total = 0.0
                 for b in range(nb):
                     off[b] = total
                     total += bsum[b]
                 if nb > 1:
                     for b in _prange(nb):
-                        for i in range(bounds[b], bounds[b + 1]):
-                            cdf[i] += off[b]
+                        cb = cdf[bounds[b]:bounds[b + 1]]
+                        for i in range(cb.shape[0]):
+                            cb[i] += off[b]
                 if fs:
                     first = m + _np.log(total)
                     if deg:
@@ -483,8 +493,8 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             ubb = ub[i0:i1]
                             if strat:
                                 _pcg64.fill_uniforms(brngs[b], ubb)
-                            _merge_gather(cdf, n, uu, ubb, strat, i0, i1, src, dst, lam_all, lam, fs, idx,
-                                          la, kk)  # la (the log-weights) is free until the next pass A
+                            _call_c(_merge_gather, merge_address, cdf, n, uu, ubb, strat, i0, i1, src, dst,
+                                    lam_all, lam, fs, idx, la, kk)  # la (the log-weights) is free now
                     else:
                         if nb > 1:  # the index schemes see the sequential running sum
                             _cumsum_into(wu, cdf)
