@@ -51,11 +51,12 @@ def test_argument_types_the_host_did_not_compile_are_refused_at_compile_time():
         _through_address(address, x, 2)
 
 
-def test_the_particle_kernel_driver_does_not_compile_pass_a_again():
-    """The driver calls pass A (the model inlined) through its address: none of pass A's or the
-    model's functions is defined in the driver's code. A model the disk cache cannot hold (defined
-    in executed code) is compiled in memory, so its code can be inspected. Catches: the driver
-    calling ``_pass_a`` directly, which compiles it (and the model) into every driver again."""
+def test_the_particle_kernel_driver_does_not_compile_its_passes_again():
+    """The driver calls pass A (the model inlined) and passes B and C through their addresses: none
+    of the passes' or the model's functions is defined in the driver's code. A model the disk cache
+    cannot hold (defined in executed code) is compiled in memory, so its code can be inspected.
+    Catches: the driver calling ``_pass_a``, ``block_weights`` or ``merge_gather`` directly, which
+    compiles it (and, for pass A, the model) into every driver again."""
     import pfbench
     from pfbench.backends.numba_backend import kernel_module
 
@@ -85,7 +86,8 @@ def test_the_particle_kernel_driver_does_not_compile_pass_a_again():
     driver = kernel_module(model, "particle", "systematic").run_group
     defined = _defines(driver)
     assert "run_group" in defined
-    assert "_pass_a" not in defined and "transition" not in defined and "log_likelihood" not in defined
+    for name in ("_pass_a", "transition", "log_likelihood", "block_weights", "merge_gather"):
+        assert name not in defined, name
 
 
 def test_a_declared_signature_lets_the_call_site_compile_before_the_callee():
