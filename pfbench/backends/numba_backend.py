@@ -289,11 +289,13 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
         import numba
 
-        args[-3:] = native_addresses(model, "particle", mod, driver, args,
-                                     [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64),
-                                      ("_pass_b", pass_b_types(work), numba.types.none),
-                                      ("_merge_gather", merge_types(work), numba.types.none)],
-                                     here=("_pass_b", "_merge_gather"), f_tiles=column_major_tiles(model))
+        calls = [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64),
+                 ("_pass_b", pass_b_types(work), numba.types.none)]
+        if mod._SCHEME in (-1, 0, 1):  # the merge serves systematic and stratified (and any scheme)
+            calls.append(("_merge_gather", merge_types(work), numba.types.none))
+        addresses = native_addresses(model, "particle", mod, driver, args, calls, here=("_pass_b", "_merge_gather"),
+                                     f_tiles=column_major_tiles(model))
+        args[-3:] = addresses + [0] * (3 - len(addresses))  # an index scheme's kernel never calls the merge
         if parallel:
             k = min(int(n_threads or numba.config.NUMBA_NUM_THREADS), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
