@@ -54,7 +54,9 @@ def test_a_block_left_normally_waits_for_the_results():
 def _helper_allowed(_):
     import os
 
-    return os.environ.get("PFBENCH_COMPILE_HELPER", "1") != "0"
+    from pfbench.backends import compile_helper
+
+    return os.environ.get(compile_helper.ENV, "1") != "0"  # enabled() less its core count
 
 
 def test_workers_of_a_shared_pool_start_no_compile_helpers(monkeypatch):

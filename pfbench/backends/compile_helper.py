@@ -9,7 +9,8 @@ code. numba compiles one function at a time per process (one global compiler loc
 run one after the other in one process: for Ob1 about 3.0 s (pass A) and 3.6 s (the driver),
 measured with numba's event recorder on a quiet machine.
 
-With two or more usable cores, when both are missing from the disk cache,
+With two or more usable cores, when the driver and any of those functions are missing from the
+disk cache,
 :func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`, which runs a helper
 Python (``python -c``, with this process's import path, so it imports the same pfbench and model
 module) and hands it the model class (by module and name), the kernel family, the tile layout and

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import write_text
+from ..resampling import Scheme
 from . import cache, compile_helper, native_call, pcg64
 
 _HERE = Path(__file__).resolve().parent
@@ -291,7 +292,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
 
         calls = [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64),
                  ("_pass_b", pass_b_types(work), numba.types.none)]
-        if mod._SCHEME in (-1, 0, 1):  # the merge serves systematic and stratified (and any scheme)
+        if mod._SCHEME in (-1, Scheme.SYSTEMATIC, Scheme.STRATIFIED):  # the driver's merge branch (-1: any)
             calls.append(("_merge_gather", merge_types(work), numba.types.none))
         addresses = native_addresses(model, "particle", mod, driver, args, calls, here=("_pass_b", "_merge_gather"),
                                      f_tiles=column_major_tiles(model))

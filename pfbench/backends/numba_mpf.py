@@ -133,8 +133,9 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
     the pieces on two cores (:func:`pfbench.backends.numba_backend.native_addresses`). Measured
     (Ob5, fresh caches, one process): the first run 10.5 s with the step math compiled into this
     function, 8.3 s by address; a cold ``pfbench run --model ob5 --method mpf`` 6.7 s before,
-    5.3 s after, with the helper (same machine, same session). What it costs at run time: 260-268 vs 271-276 ns per particle-step (N_p = 1000,
-    300 steps, alternating processes, the same estimates to the bit), about 4 %.
+    5.3 s after, with the helper (same machine, same session). What it costs at run time:
+    260-268 vs 271-276 ns per particle-step (N_p = 1000, 300 steps, alternating processes, the
+    same estimates to the bit), about 4 %.
 
     Per step ([Schon2005] Alg. 1): the x^n noise, the model's ``cl_transition``, steps 1-2
     (``sandwich``, ``condition``, ``time_update``), step 3 (``cl_constrain``), step

@@ -444,23 +444,30 @@ def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
     mod.run(*args)
 
 
-def _step_calls(s, est, cov) -> list:
-    """``(name, argument types, return type)`` of the Kalman driver's calls of the step math
-    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` in ``pfbench.backends.numba_mpf``,
-    made by address): the kernel's own float64 C arrays, and the structure arrays ``s``, a row of
-    ``yw`` and of the outputs ``est``, ``cov`` as they are passed. The driver's compile refuses
-    other types (:func:`pfbench.backends.native_call.caller`)."""
+def _step_types(s, est, cov) -> dict:
+    """Name -> (argument types, return type) of the step math both drivers call by address
+    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` in ``pfbench.backends.numba_mpf``):
+    the kernel's own float64 C arrays, and the structure arrays ``s``, a row of ``yw`` and of the
+    outputs ``est``, ``cov`` as they are passed (both drivers pass an int64 C array for x^n's
+    indices, the Kalman driver an empty one)."""
     import numba
 
     f64, none = numba.types.float64, numba.types.none
     a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
-    i1 = numba.types.Array(numba.types.int64, 1, "C")
     ty = numba.typeof
-    return [("_time_update", (a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
-            ("_kalman_update", (a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
+    return {"_time_update": ((a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
+            "_kalman_update": ((a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
                                 ty(s["logdet"]), a1, a2, a1, a1, a2, a3), none),
-            ("_mixture_moments", (a1, f64, a1, a1, a2, a2, a3, i1, ty(s["idx_l"]), a2, ty(est[0]), ty(cov[0])),
-             none)]
+            "_mixture_moments": ((a1, f64, a1, a1, a2, a2, a3, ty(s["idx_n"]), ty(s["idx_l"]), a2, ty(est[0]),
+                                  ty(cov[0])), none)}
+
+
+def _step_calls(s, est, cov) -> list:
+    """``(name, argument types, return type)`` of the Kalman driver's calls of the step math, made
+    by address (:func:`_step_types`). The driver's compile refuses other types
+    (:func:`pfbench.backends.native_call.caller`)."""
+    steps = _step_types(s, est, cov)
+    return [(name, *steps[name]) for name in ("_time_update", "_kalman_update", "_mixture_moments")]
 
 
 #: the functions of :data:`pfbench.backends.numba_mpf.RUN_CALLS` that a cold start compiles in
@@ -496,13 +503,9 @@ def _run_calls(mod, p, rng, u, s, est, cov) -> list:
              "_sandwich": ((a3, a3, ty(s["Qn"]), a3, a3), none),
              "_condition": ((a2, a3, a2, a3, a2, a3, a2, a3, a3, ty(s["T"]), ty(s["corr"]), a3, a1, a2, a2, a2, a3,
                              a2, a3), none),
-             "_time_update": ((a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
-             "_kalman_update": ((a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
-                                 ty(s["logdet"]), a1, a2, a1, a1, a2, a3), none),
              "_weigh": ((a1, a1, a1, a1), numba.types.Tuple((f64, f64, b))),
              "_moments": ((a2, a1, f64, a1, a1), f64),
-             "_mixture_moments": ((a1, f64, a1, a1, a2, a2, a3, ty(s["idx_n"]), ty(s["idx_l"]), a2, ty(est[0]),
-                                   ty(cov[0])), none)}
+             **_step_types(s, est, cov)}
     return [(name, *calls[name]) for name in mod.RUN_CALLS]
 
 
