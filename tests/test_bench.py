@@ -246,6 +246,29 @@ def test_scaling_runs_skips_what_does_not_fit_and_plots(monkeypatch, tmp_path):
     assert res["top_limited_by"].startswith("memory")
 
 
+def test_scaling_pairs_the_thread_runs_within_rounds(monkeypatch):
+    """The all-threads speed-up is the median of per-round ratios, 1 thread and all threads run back
+    to back in each round. Scripted times: 1 thread 10, 30, 10; all threads 5, 10, 10 (per-round
+    ratios 2, 3, 1: median 2; the medians alone give 10 / 10 = 1). Catches the speed-up taken as a
+    ratio of medians, and the two engines not alternating."""
+    from pfbench.bench import timing
+
+    script = {1: [10.0, 30.0, 10.0], None: [5.0, 10.0, 10.0]}
+    calls = []
+
+    def fake(model, traj, n, backend, dtype, repeats, n_threads=None, **kw):
+        calls.append(n_threads)
+        return script[n_threads][sum(1 for c in calls if c == n_threads) - 1]
+
+    monkeypatch.setattr(timing, "filter_ns", fake)
+    res = scaling.run_scaling(repeats=3, sizes=(1000,), target=2000, engines=("numba_1t", "numba_all"),
+                              progress=False)
+    assert calls == [1, None] * 3
+    by = {r["engine"]: r["ns_per_particle_step"] for r in res["rows"]}
+    assert by == {"numba_1t": 10.0, "numba_all": 10.0}  # medians: a ratio of 1.0
+    assert res["threads_speedup"]["1000"] == pytest.approx(2.0)  # ratios 2, 3, 1
+
+
 # --------------------------------------------------------------------------- startup
 def test_startup_cases_use_models_that_declare_the_structure():
     """mpf needs a model with linear and nonlinear states, guided one with a proposal, kalman one

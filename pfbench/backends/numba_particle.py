@@ -16,10 +16,10 @@ A. draw noise + propagate + log-likelihood + a = lw + ll + running max, in tiles
    model is still written once; tile-by-tile draws are the numbers one big draw gives); the
    log-weights of the common (bootstrap) step are a branch-free loop and the max keeps four
    running maxima (:func:`_max`);
-B. w = exp(a - max) (a vectorised loop of its own), then the running sum (the cdf) with the
-   weighted sums for the mean, the shifted second moment (shift: the filter's particle 0, so the
-   one-pass variance does not cancel) and sum w^2 (N_eff) riding beside it, in registers
-   (:func:`pfbench.backends.numba_weights.block_weights`);
+B. w = exp(a - max) in place of the log-weights (a vectorised loop of its own), then the running
+   sum (the cdf) with the weighted sums for the mean, the shifted second moment (shift: the
+   filter's particle 0, so the one-pass variance does not cancel) and sum w^2 (N_eff) riding
+   beside it, in registers (:func:`pfbench.backends.numba_weights.block_weights`);
 C. resampling: systematic and stratified as a merge that writes the resampled particles straight
    into the second particle buffer (the buffers swap; no index array, no copy back;
    :func:`pfbench.backends.numba_resampling.merge_gather`); multinomial and residual draw indices
@@ -102,6 +102,7 @@ from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
+from pfbench.backends.numba_resampling import ESTIMATE_TILE as _ESTIMATE_TILE
 from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.filters.methods import Method as _Method
@@ -120,7 +121,7 @@ _prange = _numba.prange
 #: pass A called through its address (:mod:`pfbench.backends.native_call`)
 _call_a = _caller(17)
 #: passes B and C (systematic/stratified) called through their addresses
-_call_b = _caller(13)
+_call_b = _caller(12)
 _call_c = _caller(15)
 
 
@@ -373,9 +374,9 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                pass_b_address, merge_address):
     """Run a group of G independent filters over all steps (random streams in documented order).
 
-    x: (G, n, n_x) particle buffer (its dtype is the particle dtype) holding the initial particles
-    (the model's ``initial``, drawn by the caller from ``rng``, filter after filter) and the final
-    particles on return; outputs (G, M, ...). rng: the group's generator; brngs: a list of the B
+    x: (G, n, n_x) particle buffer (its dtype is the particle dtype) that receives the final
+    particles; the initial particles (the model's ``initial``, drawn by the caller from ``rng``,
+    filter after filter) come in the first of the two buffers ``xs[0]``; outputs (G, M, ...). rng: the group's generator; brngs: a list of the B
     block generators (``[rng]`` when B = 1); bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w
     (G, M, n): the weighted particles of every step (before resampling) when their second dimension
     is M; pass (G, 0, ...) arrays to store nothing. method: a
@@ -397,22 +398,24 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     logn = _np.log(n)
     mlogn = -logn
     cur = gstate[0]
-    flat = gstate[1]  # 1: every log-weight is -log n (after resampling)
+    flat = gstate[1]  # 1: every log-weight is -log n (after resampling), so lw is not read yet
     for g in range(G):
         flat[g] = 1
         cur[g] = 0
-        for i in range(n):
-            lw[g, i] = mlogn
-    wu, cdf, la, lam, lam_all, ub = fwork[0], fwork[1], fwork[2], fwork[3], fwork[4], fwork[5]
-    idx, kk = iwork[0], iwork[1]
+    # la: the log-weights, then (pass B, in place) the weights, then the merge's scratch; ub: the
+    # stratified uniforms (a row systematic touches once); ASIR's two lambda rows exist only for
+    # ASIR (nothing else touches them)
+    ub, cdf, la = fwork[0], fwork[1], fwork[2]
+    asir_rows = fwork.shape[0] > 3
+    lam = fwork[3] if asir_rows else la
+    lam_all = fwork[4] if asir_rows else la
+    idx = iwork[:n]
+    kk = iwork[n:]  # per block, the merge's marks of one estimate tile
     bmax, bsum, bs2, off = bwork[0], bwork[1], bwork[2], bwork[3]
     bsx, bsxx = bmom[0], bmom[1]
-    for i in range(n):
-        lam[i] = 0.0
-    for g in range(G):
+    if method == _ASIR:
         for i in range(n):
-            for c in range(n_x):
-                xs[0, g, i, c] = x[g, i, c]
+            lam[i] = 0.0
     for t in range(M):
         yt = y[t]
         ut = u[t]
@@ -437,7 +440,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                         if la[i] > m:
                             m = la[i]
                 for b in _prange(nb):
-                    _call_b(_pass_b, pass_b_address, la, m, wu, cdf, src, bounds[b], bounds[b + 1], not fs,
+                    _call_b(_pass_b, pass_b_address, la, m, cdf, src, bounds[b], bounds[b + 1], not fs,
                             _np.int64(b), bsum, bs2, bsx, bsxx)  # b: unsigned in a prange
                 total = 0.0
                 for b in range(nb):
@@ -457,7 +460,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                 else:
                     if hist_x.shape[1] > 0:
                         for i in range(n):
-                            hist_w[g, t, i] = wu[i] / total
+                            hist_w[g, t, i] = la[i] / total
                             for c in range(n_x):
                                 hist_x[g, t, i, c] = src[i, c]
                     degen[g, t] = deg
@@ -494,11 +497,12 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             if strat:
                                 _pcg64.fill_uniforms(brngs[b], ubb)
                             _call_c(_merge_gather, merge_address, cdf, n, uu, ubb, strat, i0, i1, src, dst,
-                                    lam_all, lam, fs, idx, la, kk)  # la (the log-weights) is free now
+                                    lam_all, lam, fs, idx, la,  # la (the weights) is free now
+                                    kk[b * _ESTIMATE_TILE:(b + 1) * _ESTIMATE_TILE])
                     else:
                         if nb > 1:  # the index schemes see the sequential running sum
-                            _cumsum_into(wu, cdf)
-                        _resample(scheme, wu, cdf, rng, idx)
+                            _cumsum_into(la, cdf)
+                        _resample(scheme, la, cdf, rng, idx)
                         for b in _prange(nb):
                             _gather(idx, bounds[b], bounds[b + 1], src, dst, lam_all, lam, fs)
                     cur[g] = 1 - cur[g]
@@ -506,7 +510,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                 elif not fs:
                     lt = _np.log(total)
                     for i in range(n):
-                        lwg[i] = _np.log(wu[i]) - lt if wu[i] > 0.0 else -_np.inf
+                        lwg[i] = _np.log(la[i]) - lt if la[i] > 0.0 else -_np.inf
                     flat[g] = 0
     for g in range(G):
         for i in range(n):

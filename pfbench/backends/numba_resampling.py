@@ -17,8 +17,8 @@ from .cache import njit
 from ..resampling import Scheme
 
 #: particles per tile of the count estimates in :func:`merge_gather` (a loop of their own, which
-#: vectorises, ahead of the exact corrections)
-_ESTIMATE_TILE = 512
+#: vectorises, ahead of the exact corrections); the length of its ``kk`` scratch
+ESTIMATE_TILE = 512
 
 
 
@@ -233,7 +233,7 @@ def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_
     against it).
 
     K_j comes from x_j = cdf[j] n / total - shift (shift = u; stratified: 0.5) as floor(x_j) + 1, in
-    tiles of ``_ESTIMATE_TILE`` j in a loop of their own, which vectorises (``error_model="numpy"``:
+    tiles of ``ESTIMATE_TILE`` j in a loop of their own, which vectorises (``error_model="numpy"``:
     no zero-division check in the way).
 
     * Systematic: this is exact unless x_j lies within ``tol`` = (n + 2) 2^-49 of an integer. Proof:
@@ -252,8 +252,9 @@ def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_
       systematic tile with an x_j near an integer: the block's positions are computed into ``pos``
       [i0, i1) and each estimate is corrected by exact comparisons with them.
 
-    ``anc`` [i0, i1) and ``kk`` [j0, j1) are int64 scratch, ``pos`` float64 scratch (the blocks' j
-    ranges are disjoint).
+    ``anc`` [i0, i1) is int64 scratch, ``pos`` [i0, i1) float64 scratch, ``kk`` the call's own
+    int64 scratch of ``ESTIMATE_TILE`` (one tile's counts; a block of its own per parallel call, so it
+    stays in L1 instead of a row of N_p).
     """
     n_x = src.shape[1]
     total = cdf[n - 1]
@@ -270,10 +271,10 @@ def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_
     shift = 0.5 if strat else u
     tol = (n + 2) * 2.0 ** -49 if not strat and 1e-250 < total < 1e250 else 1.0  # 1.0: never exact
     have_pos = False
-    for s in range(j0, j1, _ESTIMATE_TILE):  # here i0 < K_j <= i1 - 1
-        e = min(s + _ESTIMATE_TILE, j1)
+    for s in range(j0, j1, ESTIMATE_TILE):  # here i0 < K_j <= i1 - 1
+        e = min(s + ESTIMATE_TILE, j1)
         cs = cdf[s:e]
-        ks = kk[s:e]  # K_j - i0
+        ks = kk[:e - s]  # K_j - i0
         near = 0
         for q in range(e - s):
             x = cs[q] * scale - shift

@@ -126,10 +126,10 @@ def _harnesses(mod):
     @numba.njit
     def whole_b(la, x, m):
         n = x.shape[0]
-        wu, cdf = np.empty(n), np.empty(n)
+        cdf = np.empty(n)
         bsum, bs2, bsx, bsxx = np.empty(1), np.empty(1), np.empty((1, 1)), np.empty((1, 1))
-        for _ in range(m):
-            pass_b(la, 0.0, wu, cdf, x, 0, n, True, 0, bsum, bs2, bsx, bsxx)
+        for _ in range(m):  # in place: the weights are in (0, 1], so with max 1 the next call's stay there
+            pass_b(la, 1.0, cdf, x, 0, n, True, 0, bsum, bs2, bsx, bsxx)
         return bsum[0]
 
     @numba.njit
@@ -183,7 +183,7 @@ def _part_timers(n: int, m: int, dtype: str) -> tuple[dict, str]:
             "convert": _timer(convert, (x.copy(), m), n, m),
             "pass_a": _timer(whole_a, (p, rng, traj.y, x.copy(), m, np.empty(n), np.zeros(n)), n, m),
             "exp": _timer(exps, (la, m), n, m),
-            "pass_b": _timer(whole_b, (la, x, m), n, m),
+            "pass_b": _timer(whole_b, (la.copy(), x, m), n, m),  # in place
             "resample": _timer(resample, (cdfs, x, rng), n, m),
             "filter": lambda: filter_ns(model, traj, n, "numba", dtype, 1, n_threads=1)}, str(x.dtype)
 

@@ -1,10 +1,13 @@
 """The particle kernel's branch-free systematic/stratified resampling gives the ancestors of the
-sequential merge (and of the NumPy reference's searchsorted) for any weights and block split."""
+sequential merge (and of the NumPy reference's searchsorted) for any weights and block split. Each
+call gets a marks scratch of one estimate tile (what the kernel gives a block), so a merge that
+indexed it by particle would write past it."""
 import numpy as np
 import pytest
 
 import pfbench
 from pfbench.backends import numba_backend
+from pfbench.backends.numba_resampling import ESTIMATE_TILE
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +51,7 @@ def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
         for i0, i1 in zip(bounds[:-1], bounds[1:]):
             kernel._merge_gather(cdf, n, u, ub[i0:i1].copy(), strat, int(i0), int(i1), src, dst, lam_src,
                                  lam_dst, with_lam, np.empty(n, np.int64), np.empty(n),
-                                 np.empty(n, np.int64))
+                                 np.empty(ESTIMATE_TILE, np.int64))
         np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
         np.testing.assert_array_equal(lam_dst, expect * 10.0 if with_lam else 0.0)
 
@@ -78,7 +81,7 @@ def test_merge_gather_is_exact_where_counts_sit_next_to_positions(kernel, n):
         bounds = np.unique(np.r_[0, np.sort(rng.integers(1, n + 1, trial % 3)), n])
         for i0, i1 in zip(bounds[:-1], bounds[1:]):
             kernel._merge_gather(cdf, n, u, np.empty(0), False, int(i0), int(i1), src, dst, lam, lam, False,
-                                 np.empty(n, np.int64), np.full(n, np.nan), np.empty(n, np.int64))
+                                 np.empty(n, np.int64), np.full(n, np.nan), np.empty(ESTIMATE_TILE, np.int64))
         np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
 
 
