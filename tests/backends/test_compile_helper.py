@@ -4,6 +4,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -18,14 +19,17 @@ from pfbench.filters.run import run_filter
 from pfbench.models import get
 
 started = []
+kinds = []
 real_start = compile_helper.start
 
 
 def counting_start(cls, *args):
     started.append(cls.__qualname__)
-    if cls.__qualname__ == "Ob1":  # a helper that cannot import its model: it fails
+    if cls.__qualname__ == "Ob1":  # a helper that cannot build its model's kernel: it fails
         cls = type("Nope", (), {"__module__": "pfbench_no_such_module"})
-    return real_start(cls, *args)
+    helper = real_start(cls, *args)
+    kinds.append(type(helper.proc).__name__ if helper else None)
+    return helper
 
 
 compile_helper.start = counting_start
@@ -59,6 +63,7 @@ out["mpf"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cac
               "driver_misses": sum(mod.run.stats.cache_misses.values()),
               "driver_defines": re.findall(r"define [^@]*@(\S+)\(", mod.run.inspect_llvm(mod.run.signatures[0])),
               "started": list(started), "est": r.estimates.tolist()}
+out["kinds"] = kinds
 print(json.dumps(out))
 """
 
@@ -91,6 +96,7 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
                        timeout=900, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     got = json.loads(r.stdout.strip().splitlines()[-1])
+    assert got.pop("kinds") == ["_Forked"] * 4  # a process running one thread forks its helpers
     ob1, ob2, ob2s = got["ob1/systematic"], got["ob2/systematic"], got["ob2/stratified"]
     assert ob1["pass_a"] == [0, 1] and ob1["driver_misses"] == 1
     assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
@@ -122,6 +128,57 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
         np.testing.assert_array_equal(np.asarray(res["est"]), want)
 
 
+SPAWN_SCRIPT = r"""
+import json, threading
+from pfbench.backends import compile_helper, numba_backend
+from pfbench.filters.run import run_filter
+from pfbench.models import get
+
+threading.Thread(target=threading.Event().wait, daemon=True).start()  # a second thread: no fork
+kinds = []
+real_start = compile_helper.start
+
+
+def recording_start(*args):
+    helper = real_start(*args)
+    kinds.append(type(helper.proc).__name__ if helper else None)
+    return helper
+
+
+compile_helper.start = recording_start
+m = get("linear_gaussian")
+tr = m.simulate(15, seed=1)
+r = run_filter(m, tr.y, tr.u, method="kalman")
+mod = numba_backend.kernel_module(m, "mpf", None)
+print(json.dumps({"kinds": kinds, "est": r.estimates.tolist(),
+                  "step_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+                                 for f in (mod._time_update, mod._kalman_update, mod._mixture_moments)]}))
+"""
+
+
+@pytest.mark.skipif(compile_helper.usable_cores() < 2, reason="a compile helper needs a second core")
+def test_a_process_running_threads_starts_a_new_interpreter_as_its_helper(tmp_path):
+    """With a second thread running, forking is not safe (a lock that thread holds would stay
+    locked in the child), so the helper is a new interpreter that imports the model itself; it
+    compiles the Kalman step math into the cache, this process loads it (hits, no misses) and gets
+    the estimates of a run in this (test) process. Catches: a fork from a threaded process, and a
+    spawned helper that no longer works."""
+    from pfbench.filters.run import run_filter
+    from pfbench.models import get
+
+    env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "pf"), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
+    env.pop(compile_helper.ENV, None)
+    r = subprocess.run([sys.executable, "-c", SPAWN_SCRIPT], capture_output=True, text=True, env=env,
+                       timeout=900, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    assert got["kinds"] == ["Popen"]
+    assert got["step_calls"] == [[1, 0]] * 3
+    m = get("linear_gaussian")
+    tr = m.simulate(15, seed=1)
+    np.testing.assert_array_equal(np.asarray(got["est"]), run_filter(m, tr.y, tr.u, method="kalman").estimates)
+
+
 def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
     """Catches: a helper that competes with this process for its only core, or one that ignores
     ``PFBENCH_COMPILE_HELPER=0``."""
@@ -135,16 +192,24 @@ def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
     assert not compile_helper.enabled()
 
 
-def test_a_helper_that_cannot_run_reports_failure(monkeypatch):
-    """A helper whose model module does not exist exits non-zero, and :meth:`Helper.finish` says
-    so. Catches: a finish() that reports success without looking at the exit status."""
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_helper_that_cannot_run_reports_failure(monkeypatch, threads):
+    """A helper whose model module does not exist exits non-zero, forked (one thread running) or
+    spawned (two), and :meth:`Helper.finish` says so. Catches: a finish() that reports success
+    without looking at the exit status, and a forked child that returns into the caller's code."""
+    import threading
+
     nope = type("Nope", (), {"__module__": "pfbench_no_such_module"})
     helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"]))
     assert helper.finish() is False
     monkeypatch.delenv(compile_helper.ENV, raising=False)
+    monkeypatch.setattr(threading, "active_count", lambda: threads)
     if compile_helper.enabled():
+        me = os.getpid()
         helper = compile_helper.start(nope, "particle", False, [("_pass_a", ())])
-        assert helper is not None and helper.finish() is False
+        assert os.getpid() == me  # this is the caller, not a child that came back
+        assert type(helper.proc).__name__ == ("_Forked" if threads == 1 else "Popen")
+        assert helper.finish() is False
 
 
 def test_kill_ends_a_helper_at_once():
@@ -158,3 +223,13 @@ def test_kill_ends_a_helper_at_once():
     helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", code]))
     helper.kill()
     assert helper.proc.returncode == -signal.SIGKILL
+    pid = os.fork()
+    if pid == 0:  # a forked helper that would sleep a minute
+        try:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            time.sleep(60)
+        finally:
+            os._exit(0)
+    helper = compile_helper.Helper(compile_helper._Forked(pid))
+    helper.kill()
+    assert helper.proc.wait() == -signal.SIGKILL
