@@ -68,6 +68,16 @@ print(json.dumps(out))
 """
 
 
+def _run_cold(script: str, tmp_path) -> dict:
+    """Run ``script`` in a fresh process on empty caches (helpers allowed); its last output line."""
+    env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "pf"), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
+    env.pop(compile_helper.ENV, None)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
+                       timeout=900, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 @pytest.mark.skipif(compile_helper.usable_cores() < 2, reason="a compile helper needs a second core")
 def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(tmp_path):
     """In one fresh process with an empty cache:
@@ -90,12 +100,7 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     from pfbench.filters.run import run_filter
     from pfbench.models import get
 
-    env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "pf"), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
-    env.pop(compile_helper.ENV, None)
-    r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env,
-                       timeout=900, cwd=tmp_path)
-    assert r.returncode == 0, r.stderr
-    got = json.loads(r.stdout.strip().splitlines()[-1])
+    got = _run_cold(SCRIPT, tmp_path)
     assert got.pop("kinds") == ["_Forked"] * 4  # a process running one thread forks its helpers
     ob1, ob2, ob2s = got["ob1/systematic"], got["ob2/systematic"], got["ob2/stratified"]
     assert ob1["pass_a"] == [0, 1] and ob1["driver_misses"] == 1
@@ -166,12 +171,7 @@ def test_a_process_running_threads_starts_a_new_interpreter_as_its_helper(tmp_pa
     from pfbench.filters.run import run_filter
     from pfbench.models import get
 
-    env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "pf"), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
-    env.pop(compile_helper.ENV, None)
-    r = subprocess.run([sys.executable, "-c", SPAWN_SCRIPT], capture_output=True, text=True, env=env,
-                       timeout=900, cwd=tmp_path)
-    assert r.returncode == 0, r.stderr
-    got = json.loads(r.stdout.strip().splitlines()[-1])
+    got = _run_cold(SPAWN_SCRIPT, tmp_path)
     assert got["kinds"] == ["Popen"]
     assert got["step_calls"] == [[1, 0]] * 3
     m = get("linear_gaussian")
