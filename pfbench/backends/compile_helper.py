@@ -27,7 +27,8 @@ disk.
 What the helper takes is the caller's choice (``here`` of
 :func:`pfbench.backends.numba_backend.native_addresses`): the particle kernel hands it pass A,
 the Kalman driver its step math, the MPF driver the model's functions and the wrappers that call
-them, keeping the model-free steps that balance the two cores.
+them, keeping the model-free steps that balance the two cores, a guided run the wrappers of the
+model's proposal and weight.
 
 The helper only ever saves time. Whatever goes wrong there (the model's module cannot be
 imported in a new process, a compile error, a crash, a kill) leaves no cache entry, and this

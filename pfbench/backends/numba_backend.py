@@ -53,7 +53,8 @@ FAMILIES: dict[str, tuple[str, tuple[str, ...]]] = {
 #: schemes of a model share one compilation of them (the particle kernel's pass A, the draws and the
 #: model inlined, is about 40 % of its cold compile)
 SCHEME_FREE: dict[str, tuple[str, ...]] = {
-    "particle": ("_pass_a",), "mpf": ("_transition_into", "_observation_into", "_constrain_into")}
+    "particle": ("_pass_a",), "mpf": ("_transition_into", "_observation_into", "_constrain_into"),
+    "guided": ("_propose_into", "_weight_into", "_predictive_into")}
 _LOCK = threading.RLock()
 _MODULES: dict[tuple[str, type, str, bool], object] = {}
 _FUNCS: dict[tuple[type, str], object] = {}

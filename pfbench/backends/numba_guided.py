@@ -17,7 +17,11 @@ compiled code (the closed-loop PMSM simulation), through
 
 :func:`init`, :func:`_reweigh` and the ``step_*`` functions are ``inline="always"``: numba inlines
 them into the function that calls them, so a whole run (or a closed-loop caller) is compiled and
-optimised once instead of once per level (seconds less on a cold cache; the same operations).
+optimised once instead of once per level (seconds less on a cold cache; the same operations). A
+whole run calls the model itself by address (see "the model's calls" below): measured on the
+reduced PMSM model, a cold ``pfbench run --method guided`` 4.7-5.0 s with the model inlined, 3.2-3.3 s
+with the model's wrappers compiled in a helper meanwhile; the run 69.0 vs 70.0 ns per
+particle-step (N_p = 1000).
 
 Arguments shared by the step functions: ``p`` the model's ``params()``, ``rng`` the generator,
 ``x`` (n, n_x) particles (updated in place; their dtype is the particle dtype), ``lw`` (n,)
@@ -30,6 +34,7 @@ the particles of step t. They return ``(loglik increment, N_eff, resampled, dege
 import numpy as _np
 
 from pfbench.backends.cache import njit as _njit
+from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_weights import moments as _moments
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import weigh as _weigh
@@ -53,6 +58,68 @@ def _predictive_log_likelihood(y, x_prev, u, t, p):  # pragma: no cover - bound 
 
 def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by kernel_module
     raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
+
+
+#: bound by kernel_module: the resampling scheme's code, -1 in the any-scheme module (per-step use
+#: from compiled callers, and the module a compile helper builds the model's calls from)
+_SCHEME = -1
+_call6 = _caller(6)
+_call7 = _caller(7)
+
+# --------------------------------------------------------------------------- the model's calls
+# A whole run (``run_proposal``/``run_optimal``, in a scheme's module) calls the model through
+# these, by address (:mod:`pfbench.backends.native_call`; ``addresses`` = [proposal, weight]): they
+# are the model's code, compiled once per model for all schemes (``SCHEME_FREE`` in
+# :mod:`pfbench.backends.numba_backend`) and, on a cold cache, in a helper process while the run
+# compiles here (:mod:`pfbench.backends.compile_helper`). The any-scheme module, which serves
+# per-step use from other compiled code, calls the model directly (``_SCHEME == -1``, a constant
+# numba prunes on). Only ever called by address: no CPython wrapper.
+
+
+@_njit(nogil=True, no_cpython_wrapper=True)
+def _propose_into(x, y, u, t, noise, p, xn):
+    """xn = the model's ``proposal(x, y, u, t, noise, p)``."""
+    xn[:] = _proposal(x, y, u, t, noise, p)
+
+
+@_njit(nogil=True, no_cpython_wrapper=True)
+def _weight_into(xn, x, y, u, t, p, ll):
+    """ll = the model's ``proposal_log_weight(xn, x, y, u, t, p)`` in float64."""
+    ll[:] = _proposal_log_weight(xn, x, y, u, t, p)
+
+
+@_njit(nogil=True, no_cpython_wrapper=True)
+def _predictive_into(y, x, u, t, p, ll):
+    """ll = the model's ``predictive_log_likelihood(y, x, u, t, p)`` in float64."""
+    ll[:] = _predictive_log_likelihood(y, x, u, t, p)
+
+
+@_njit(nogil=True, inline="always")
+def _propose(x, y, u, t, noise, p, addresses):
+    xn = _np.empty_like(x)
+    if _SCHEME == -1:  # compile-time constant
+        xn[:] = _proposal(x, y, u, t, noise, p)
+    else:
+        _call7(_propose_into, addresses[0], x, y, u, t, noise, p, xn)
+    return xn
+
+
+@_njit(nogil=True, inline="always")
+def _weight(xn, x, y, u, t, p, addresses):
+    if _SCHEME == -1:
+        return _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
+    ll = _np.empty(x.shape[0])
+    _call7(_weight_into, addresses[1], xn, x, y, u, t, p, ll)
+    return ll
+
+
+@_njit(nogil=True, inline="always")
+def _predictive(y, x, u, t, p, addresses):
+    if _SCHEME == -1:
+        return _predictive_log_likelihood(y, x, u, t, p).astype(_np.float64)
+    ll = _np.empty(x.shape[0])
+    _call6(_predictive_into, addresses[1], y, x, u, t, p, ll)
+    return ll
 
 
 @_njit(nogil=True, inline="always")
@@ -89,53 +156,57 @@ def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, cdf):
 
 
 @_njit(nogil=True, inline="always")
-def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, addresses=None):
     """The model's own proposal: x_t ~ q(. | x_{t-1}, y_t), weight by ``proposal_log_weight``,
-    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000])."""
+    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000]).
+    ``addresses``: see "the model's calls" above (unused in the any-scheme module)."""
     n = x.shape[0]
     noise = rng.standard_normal((n, n_noise))
-    xn = _np.empty_like(x)
-    xn[:] = _proposal(x, y, u, t, noise, p)
-    ll = _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
+    xn = _propose(x, y, u, t, noise, p, addresses)
+    ll = _weight(xn, x, y, u, t, p, addresses)
     x[:] = xn
     inc, e, do, deg, _ = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, _np.empty(n), _np.empty(n))
     return inc, e, do, deg
 
 
 @_njit(nogil=True, inline="always")
-def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, addresses=None):
     """The locally optimal proposal, fully adapted order ([Doucet2000]; [Thesis] eqs. 4.24-4.25):
     weight by p(y_t | x_{t-1}), resample when N_eff < threshold, then propagate
-    x_t ~ p(x_t | x_{t-1}, y_t); the estimate is the weighted mean of the propagated particles."""
+    x_t ~ p(x_t | x_{t-1}, y_t); the estimate is the weighted mean of the propagated particles.
+    ``addresses`` as for :func:`step_proposal`."""
     n = x.shape[0]
     wu = _np.empty(n)
-    ll = _predictive_log_likelihood(y, x, u, t, p).astype(_np.float64)
+    ll = _predictive(y, x, u, t, p, addresses)
     inc, e, do, deg, total = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, _np.empty(n))
     noise = rng.standard_normal((n, n_noise))
-    xn = _np.empty_like(x)
-    xn[:] = _proposal(x, y, u, t, noise, p)
+    xn = _propose(x, y, u, t, noise, p, addresses)
     x[:] = xn
     _moments(x, wu, total, mean, var)
     return inc, e, do, deg
 
 
 @_njit(nogil=True)
-def run_proposal(p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen):
+def run_proposal(p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen,
+                 addresses):
     """All M steps with the model's own proposal; outputs (M, ...) filled in place.
 
     ``x``, ``lw``: the initial particles and log-weights, drawn from ``rng`` by the caller with the
     model's NumPy ``initial`` (:func:`pfbench.filters.guided.numpy_init`, the NumPy reference's
     draw; the kernel continues the same stream), so a whole run does not compile the model's
-    ``initial`` (measured: 1.55 s of a cold start on the reduced PMSM model)."""
+    ``initial`` (measured: 1.55 s of a cold start on the reduced PMSM model). ``addresses``: the
+    native entry points of ``_propose_into`` and ``_weight_into`` (int64 array)."""
     for t in range(y.shape[0]):
         inc[t], ess[t], resampled[t], degen[t] = step_proposal(
-            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t])
+            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t], addresses)
 
 
 @_njit(nogil=True)
-def run_optimal(p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen):
+def run_optimal(p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen,
+                addresses):
     """All M steps with the locally optimal proposal; outputs (M, ...) filled in place (``x``,
-    ``lw`` initialised by the caller, as for :func:`run_proposal`)."""
+    ``lw`` initialised by the caller, as for :func:`run_proposal`; ``addresses``: those of
+    ``_propose_into`` and ``_predictive_into``)."""
     for t in range(y.shape[0]):
         inc[t], ess[t], resampled[t], degen[t] = step_optimal(
-            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t])
+            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t], addresses)

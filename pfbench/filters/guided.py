@@ -351,10 +351,31 @@ _WARM: set = set()
 
 
 def _run_numba(model, p, rng, y, u, x, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
+    y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types _model_calls gives
     lw = np.empty(x.shape[0])
     numpy_init(_functions(type(model)), p, rng, x, lw)  # in NumPy, as the reference: the kernel continues
-    getattr(_numba_backend.kernel_module(model, "guided", scheme), f"run_{kind}")(
-        p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, res, degen)
+    mod = _numba_backend.kernel_module(model, "guided", scheme)
+    driver = getattr(mod, f"run_{kind}")
+    args = [p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, res, degen, np.zeros(2, np.int64)]
+    args[-1] = np.array(_numba_backend.native_addresses(model, "guided", mod, driver, args,
+                                                        _model_calls(kind, p, y, u, x, n_noise)), np.int64)
+    driver(*args)
+
+
+def _model_calls(kind, p, y, u, x, n_noise) -> list:
+    """``(name, argument types, return type)`` of the two model calls a whole run makes by address
+    (:mod:`pfbench.backends.numba_guided`, "the model's calls"): the proposal, then the proposal's
+    weight (``kind`` "proposal") or the predictive likelihood ("optimal"), typed as the kernel
+    calls them (C-contiguous ``y``, ``u``; ``x`` the particles; float64 noise and weights)."""
+    import numba
+
+    t = numba.types
+    px, xn, row_y, row_u = numba.typeof(x), numba.typeof(np.empty_like(x)), numba.typeof(y[0]), numba.typeof(u[0])
+    pt, f1, f2 = numba.typeof(p), numba.typeof(np.empty(1)), numba.typeof(np.empty((1, n_noise)))
+    calls = [("_propose_into", (px, row_y, row_u, t.int64, f2, pt, xn), t.none)]
+    if kind == "proposal":
+        return calls + [("_weight_into", (xn, px, row_y, row_u, t.int64, pt, f1), t.none)]
+    return calls + [("_predictive_into", (row_y, px, row_u, t.int64, pt, f1), t.none)]
 
 
 def _warm_up(model, p, y, u, x, kind, n_noise, scheme) -> None:

@@ -63,6 +63,13 @@ out["mpf"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cac
               "driver_misses": sum(mod.run.stats.cache_misses.values()),
               "driver_defines": re.findall(r"define [^@]*@(\S+)\(", mod.run.inspect_llvm(mod.run.signatures[0])),
               "started": list(started), "est": r.estimates.tolist()}
+m = get("pmsm_reduced")
+tr = m.simulate(15, seed=1)
+r = run_filter(m, tr.y, tr.u, method="guided", n_particles=64, seed=3)
+mod = numba_backend.kernel_module(m, "guided", None)
+out["guided"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+                                 for f in (mod._propose_into, mod._predictive_into)],
+                 "started": list(started), "est": r.estimates.tolist()}
 out["kinds"] = kinds
 print(json.dumps(out))
 """
@@ -95,13 +102,16 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
       and the kernel's three wrappers that call them, this process loads them (hits, no miss) and
       compiles the driver, whose code defines none of them and none of the step math (called by
       address). Catches: a driver calling the model, a wrapper or a step directly.
+    * The guided filter on the reduced PMSM model (the optimal proposal): the helper compiles the
+      wrappers of its proposal and predictive likelihood, this process loads them (hits, no
+      miss). Catches: a guided run that compiles the model itself.
 
     Every run gives the estimates of the same run in this (test) process, bit for bit."""
     from pfbench.filters.run import run_filter
     from pfbench.models import get
 
     got = _run_cold(SCRIPT, tmp_path)
-    assert got.pop("kinds") == ["_Forked"] * 4  # a process running one thread forks its helpers
+    assert got.pop("kinds") == ["_Forked"] * 5  # a process running one thread forks its helpers
     ob1, ob2, ob2s = got["ob1/systematic"], got["ob2/systematic"], got["ob2/stratified"]
     assert ob1["pass_a"] == [0, 1] and ob1["driver_misses"] == 1
     assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
@@ -125,6 +135,13 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     tr = m.simulate(15, seed=1)
     want = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3).estimates
     np.testing.assert_array_equal(np.asarray(mpf["est"]), want)
+    guided = got.pop("guided")
+    assert guided["model_calls"] == [[1, 0]] * 2
+    m = get("pmsm_reduced")
+    assert guided["started"][-1] == type(m).__qualname__
+    tr = m.simulate(15, seed=1)
+    want = run_filter(m, tr.y, tr.u, method="guided", n_particles=64, seed=3).estimates
+    np.testing.assert_array_equal(np.asarray(guided["est"]), want)
     for key, res in got.items():
         name, scheme = key.split("/")
         m = get(name)

@@ -51,15 +51,10 @@ def test_argument_types_the_host_did_not_compile_are_refused_at_compile_time():
         _through_address(address, x, 2)
 
 
-def test_the_particle_kernel_driver_does_not_compile_its_passes_again():
-    """The driver calls pass A (the model inlined) and passes B and C through their addresses: none
-    of the passes' or the model's functions is defined in the driver's code. A model the disk cache
-    cannot hold (defined in executed code) is compiled in memory, so its code can be inspected.
-    Catches: the driver calling ``_pass_a``, ``block_weights`` or ``merge_gather`` directly, which
-    compiles it (and, for pass A, the model) into every driver again."""
-    import pfbench
-    from pfbench.backends.numba_backend import kernel_module
-
+def _in_memory_models() -> dict:
+    """Model classes defined in executed code, which the disk cache cannot hold: numba compiles
+    them in memory, so the drivers' code can be inspected. ``Drift`` (a random walk with drift
+    towards 0), ``DriftProposal`` and ``DriftOptimal`` (the same with the two kinds of proposal)."""
     ns = {}
     exec("import numpy as np\n"
          "from pfbench.models import StateSpaceModel\n"
@@ -79,8 +74,35 @@ def test_the_particle_kernel_driver_does_not_compile_its_passes_again():
          "        return -0.5 * r * r\n"
          "    @staticmethod\n"
          "    def observe(x, u, t, noise, p):\n"
-         "        return x + noise\n", ns)
-    model = ns["Drift"]()
+         "        return x + noise\n"
+         "class DriftProposal(Drift):\n"
+         "    proposal_kind = 'proposal'\n"
+         "    @staticmethod\n"
+         "    def proposal(x_prev, y, u, t, noise, p):\n"
+         "        return 0.9 * x_prev + p[0] * noise\n"
+         "    @staticmethod\n"
+         "    def proposal_log_weight(x, x_prev, y, u, t, p):\n"
+         "        r = y[0] - x[:, 0]\n"
+         "        return -0.5 * r * r\n"
+         "    @staticmethod\n"
+         "    def predictive_log_likelihood(y, x_prev, u, t, p):\n"
+         "        r = y[0] - 0.9 * x_prev[:, 0]\n"
+         "        return -0.5 * r * r / (1.0 + p[0] * p[0])\n"
+         "class DriftOptimal(DriftProposal):\n"
+         "    proposal_kind = 'optimal'\n", ns)
+    return ns
+
+
+def test_the_particle_kernel_driver_does_not_compile_its_passes_again():
+    """The driver calls pass A (the model inlined) and passes B and C through their addresses: none
+    of the passes' or the model's functions is defined in the driver's code. A model the disk cache
+    cannot hold (:func:`_in_memory_models`) is compiled in memory, so its code can be inspected.
+    Catches: the driver calling ``_pass_a``, ``block_weights`` or ``merge_gather`` directly, which
+    compiles it (and, for pass A, the model) into every driver again."""
+    import pfbench
+    from pfbench.backends.numba_backend import kernel_module
+
+    model = _in_memory_models()["Drift"]()
     tr = model.simulate(4, seed=0)
     pfbench.run_filter(model, tr.y, tr.u, method="bootstrap", n_particles=8, backend="numba", seed=0)
     driver = kernel_module(model, "particle", "systematic").run_group
@@ -88,6 +110,25 @@ def test_the_particle_kernel_driver_does_not_compile_its_passes_again():
     assert "run_group" in defined
     for name in ("_pass_a", "transition", "log_likelihood", "block_weights", "merge_gather"):
         assert name not in defined, name
+
+
+def test_a_guided_run_calls_the_model_by_address():
+    """A whole guided run (a scheme's module) calls the model's proposal and its weight (or the
+    predictive likelihood) through the wrappers' addresses: none of the model's functions or the
+    wrappers is defined in the driver's code, for either kind of proposal. Catches: a run calling
+    the model directly (compiled into every scheme's driver again, and not in a compile helper)."""
+    import pfbench
+    from pfbench.backends.numba_backend import kernel_module
+
+    ns = _in_memory_models()
+    for cls, kind in ((ns["DriftProposal"], "proposal"), (ns["DriftOptimal"], "optimal")):
+        model = cls()
+        tr = model.simulate(4, seed=0)
+        pfbench.run_filter(model, tr.y, tr.u, method="guided", n_particles=8, backend="numba", seed=0)
+        defined = _defines(getattr(kernel_module(model, "guided", "systematic"), f"run_{kind}"))
+        assert f"run_{kind}" in defined
+        for name in ("8proposal", "proposal_log_weight", "predictive_log_likelihood", "_into"):
+            assert name not in defined, (kind, name)
 
 
 def test_a_declared_signature_lets_the_call_site_compile_before_the_callee():
