@@ -13,8 +13,9 @@ With two or more usable cores, when the driver and any of those functions are mi
 disk cache,
 :func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`. While this process
 runs a single Python thread (a command-line run, a script), the helper is a fork of it: numba,
-pfbench and the model are imported already and it starts compiling at once. Otherwise (a fork
-copies only the calling thread, and a lock another thread holds would stay locked in the child)
+pfbench and the model are imported already and it starts compiling at once (on Linux; see
+:func:`_fork`). Otherwise (a fork copies only the calling thread, and a lock another thread holds
+would stay locked in the child)
 it is a new Python (``python -c``, with this process's import path, so it imports the same
 pfbench and model module), handed the model class (by module and name), the kernel family, the
 tile layout and the functions' names and argument types; it spends about 0.4 s importing before
@@ -104,7 +105,7 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
     if not enabled() or model_cls.__module__ == "__main__":
         return None
     functions = [(name, tuple(argtypes)) for name, argtypes in functions]
-    if hasattr(os, "fork") and threading.active_count() == 1:
+    if sys.platform.startswith("linux") and threading.active_count() == 1:  # macOS: see _fork
         return _fork(model_cls, family, bool(f_tiles), functions)
     from .numba_backend import FAMILIES
 
@@ -188,8 +189,10 @@ def _fork(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
     so it starts compiling at once, where a new interpreter first spends about 0.4 s importing
     them. Taken only while this process runs no other Python thread (a fork copies just the
     calling thread, and a lock another thread held would stay locked in the child; the helper
-    itself runs no parallel code). The child never returns into the caller: it ends with
-    ``os._exit``, 0 when it compiled everything, 1 on any error or interrupt."""
+    itself runs no parallel code), and only on Linux (on macOS a forked child that touches the
+    system frameworks may crash or hang, which is why Python's ``multiprocessing`` spawns there).
+    The child never returns into the caller: it ends with ``os._exit``, 0 when it compiled
+    everything, 1 on any error or interrupt."""
     parent = os.getpid()
     try:
         pid = os.fork()
