@@ -104,12 +104,16 @@ from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
 from pfbench.backends.numba_resampling import ESTIMATE_TILE as _ESTIMATE_TILE
 from pfbench.backends.numba_weights import block_weights as _pass_b
+from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.filters.methods import Method as _Method
+from pfbench.resampling import Scheme as _Scheme
 
 _ASIR = int(_Method.ASIR)
 _BOOTSTRAP = int(_Method.BOOTSTRAP)
 _SIR = int(_Method.SIR)
+_SYSTEMATIC = int(_Scheme.SYSTEMATIC)  # the schemes the merge serves
+_STRATIFIED = int(_Scheme.STRATIFIED)
 #: particles per tile of the fused pass A (the tile's noise, new states and likelihoods stay in L1/L2).
 #: Each tile allocates the model's result arrays (and frees them), a fixed cost per tile: measured
 #: on Ob1, 1 thread, N_p = 1000, marginal cost of 2000 steps, 12.2 ns per particle-step with tiles
@@ -379,9 +383,10 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
 
     x: (G, n, n_x) particle buffer (its dtype is the particle dtype) that receives the final
     particles; the initial particles (the model's ``initial``, drawn by the caller from ``rng``,
-    filter after filter) come in the first of the two buffers ``xs[0]``; outputs (G, M, ...). rng: the group's generator; brngs: a list of the B
-    block generators (``[rng]`` when B = 1); bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w
-    (G, M, n): the weighted particles of every step (before resampling) when their second dimension
+    filter after filter) come in the first of the two buffers ``xs[0]``; outputs (G, M, ...).
+    rng: the group's generator; brngs: a list of the B block generators (``[rng]`` when B = 1);
+    bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w (G, M, n): the weighted
+    particles of every step (before resampling) when their second dimension
     is M; pass (G, 0, ...) arrays to store nothing. method: a
     :class:`~pfbench.filters.methods.Method` code of the particle family (MultiPDF runs bootstrap
     sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
@@ -487,8 +492,9 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                     resampled[g, t] = do
                 if do:
                     dst = xs[1 - cur[g], g]
-                    if _SCHEME == 0 or _SCHEME == 1 or (_SCHEME == -1 and scheme <= 1):  # pruned at compile time
-                        strat = scheme == 1
+                    if (_SCHEME == _SYSTEMATIC or _SCHEME == _STRATIFIED  # pruned at compile time
+                            or (_SCHEME == -1 and (scheme == _SYSTEMATIC or scheme == _STRATIFIED))):
+                        strat = scheme == _STRATIFIED
                         uu = 0.0
                         if not strat:
                             _pcg64.fill_uniforms(rng, ub[:1])
@@ -511,9 +517,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                     cur[g] = 1 - cur[g]
                     flat[g] = 1
                 elif not fs:
-                    lt = _np.log(total)
-                    for i in range(n):
-                        lwg[i] = _np.log(la[i]) - lt if la[i] > 0.0 else -_np.inf
+                    _normalised_log_weights(la, total, lwg)
                     flat[g] = 0
     for g in range(G):  # the final particles, block by block (on every thread: 16 MB at N_p = 10^6)
         fin = xs[cur[g], g]

@@ -103,8 +103,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
                 if c_note is not None:
                     row["skipped"] = c_note
             elif eng == "numpy":
-                if traj is None:
-                    traj = model.simulate(m, seed=1)
+                traj = traj or model.simulate(m, seed=1)
                 try:
                     row["ns_per_particle_step"] = filter_ns(model, traj, n, "numpy", "float64", max(1, repeats))
                 except InputError as exc:  # run_filter's own memory check refused it
@@ -116,8 +115,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
                 bar.update()
         if numba_rows:
             bar.set_postfix_str(f"N_p={_pow10(n)} " + " / ".join(numba_rows))
-            if traj is None:
-                traj = model.simulate(m, seed=1)
+            traj = traj or model.simulate(m, seed=1)
             measures = {eng: (lambda k=(1 if eng == "numba_1t" else None):
                               filter_ns(model, traj, n, "numba", "float64", 1, n_threads=k))
                         for eng in numba_rows}
