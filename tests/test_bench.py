@@ -10,7 +10,7 @@ import pytest
 
 from pfbench.bench import c_reference, main_text, run_bench, scaling, startup, summarize
 from pfbench.bench.report import TARGETS, check
-from pfbench.bench.timing import interleaved, paired_ratio
+from pfbench.bench.timing import interleaved, paired_ratio, ratio_range
 
 HAVE_CC = c_reference.compiler() is not None
 
@@ -120,6 +120,8 @@ def test_paired_ratio_divides_within_rounds():
     assert paired_ratio([1.0, 10.0, 2.0], [10.0, 10.0, 20.0]) == pytest.approx(0.1)
     assert paired_ratio([1.0, 1.0, 10.0], [1.0, 10.0, 10.0]) == 1.0  # medians: 1 / 10
     assert paired_ratio([], []) is None
+    assert ratio_range([1.0, 1.0, 10.0], [1.0, 10.0, 10.0]) == [0.1, 1.0]  # the rounds' spread
+    assert ratio_range([1.0], [0.0]) is None
     seen = []
     out = interleaved({"a": lambda: seen.append("a") or 1.0, "b": lambda: seen.append("b") or 2.0}, 3)
     assert seen == ["a", "b"] * 3 and out == {"a": [1.0] * 3, "b": [2.0] * 3}
@@ -138,6 +140,10 @@ def test_targets_are_judged_on_the_paired_rounds(res):
     assert got["threads_speedup_1e5"] == pytest.approx(paired_ratio(ns["threads_1_100000"], ns["threads_all_100000"]))
     if "c_fast" in ns:
         assert got["numba_over_c"] == pytest.approx(paired_ratio(ns["numba"], ns["c_fast"]))
+    lo, hi = ratio_range(ns["threads_1_100000"], ns["threads_all_100000"])
+    assert pd["ratio_ranges"]["threads_speedup_100000"] == [lo, hi] and lo <= got["threads_speedup_1e5"] <= hi
+    label = next(t["label"] for t in res["targets"] if t["target"] == "threads_speedup_1e5")
+    assert label.endswith(f"(rounds {lo:.2f}-{hi:.2f}x)")  # the spread printed beside the median
     assert any(line.startswith("paired rounds") for line in main_text(res))
 
 
@@ -267,6 +273,8 @@ def test_scaling_pairs_the_thread_runs_within_rounds(monkeypatch):
     by = {r["engine"]: r["ns_per_particle_step"] for r in res["rows"]}
     assert by == {"numba_1t": 10.0, "numba_all": 10.0}  # medians: a ratio of 1.0
     assert res["threads_speedup"]["1000"] == pytest.approx(2.0)  # ratios 2, 3, 1
+    assert res["threads_speedup_rounds"]["1000"] == pytest.approx([1.0, 3.0])  # the spread beside it
+    assert "N_p=10^3: 2.00x (rounds 1.00-3.00x)" in "\n".join(scaling.text(res))
 
 
 # --------------------------------------------------------------------------- startup

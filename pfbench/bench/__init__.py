@@ -41,7 +41,7 @@ from pathlib import Path
 import click
 
 from .floor import breakdown_ns, floor_ns
-from .timing import filter_ns, interleaved, paired_ratio, particles_ns
+from .timing import filter_ns, interleaved, paired_ratio, particles_ns, ratio_range
 
 CONFIGS = ((1000, 1000), (500, 1000), (500, 500), (100, 100_000))
 QUICK_CONFIGS = ((200, 1000), (20, 100_000))
@@ -159,7 +159,9 @@ def paired_rounds(model, key, big, thread_cfgs, rounds: int, with_c: bool) -> di
     float64 1 thread, the floor and the C reference (fast RNG) at ``key``; numba float64 and
     float32 at ``big``; 1 thread and all threads at each of ``thread_cfgs``. Each timer is one run
     (compilation excluded). Returns ``{"rounds": R, "ns": name -> R timings, "ratios": name ->
-    median of the per-round ratios}``."""
+    median of the per-round ratios, "ratio_ranges": name -> [smallest, largest] per-round ratio}``
+    (the targets print the range beside the median: on a shared machine the all-threads runs of
+    one round can be 30 % slower than the next round's while the 1-thread runs are not)."""
     from . import c_reference
 
     (m, n), (mb, nbig) = key, big
@@ -176,12 +178,12 @@ def paired_rounds(model, key, big, thread_cfgs, rounds: int, with_c: bool) -> di
         measures[f"threads_all_{nt}"] = lambda tt=tt, nt=nt: filter_ns(model, tt, nt, "numba", "float64", 1,
                                                                      n_threads=None)
     ns = interleaved(measures, rounds)
-    ratios = {"numba_over_c": paired_ratio(ns["numba"], ns["c_fast"]) if with_c else None,
-              "numba_over_floor": paired_ratio(ns["numba"], ns["floor"]),
-              "float32_speedup_big": paired_ratio(ns["big_float64"], ns["big_float32"])}
-    for _, nt in thread_cfgs:
-        ratios[f"threads_speedup_{nt}"] = paired_ratio(ns[f"threads_1_{nt}"], ns[f"threads_all_{nt}"])
-    return {"rounds": int(rounds), "ns": ns, "ratios": ratios}
+    pairs = {"numba_over_c": ("numba", "c_fast"), "numba_over_floor": ("numba", "floor"),
+             "float32_speedup_big": ("big_float64", "big_float32"),
+             **{f"threads_speedup_{nt}": (f"threads_1_{nt}", f"threads_all_{nt}") for _, nt in thread_cfgs}}
+    ratios = {k: paired_ratio(ns[a], ns[b]) if b in ns else None for k, (a, b) in pairs.items()}
+    ranges = {k: ratio_range(ns[a], ns[b]) if b in ns else None for k, (a, b) in pairs.items()}
+    return {"rounds": int(rounds), "ns": ns, "ratios": ratios, "ratio_ranges": ranges}
 
 
 def summarize(rows, floors, c_rows, threads, part, key, big, paired=None) -> tuple[dict, list]:
@@ -220,18 +222,25 @@ def summarize(rows, floors, c_rows, threads, part, key, big, paired=None) -> tup
                 "float32_speedup_big": s["float32_speedup_big"],
                 **{f"threads_speedup_{t['particles']}": t["speedup"] for t in threads}}
     src, how = (paired["ratios"], f", paired over {paired['rounds']} rounds") if paired else (unpaired, "")
+    spread = paired.get("ratio_ranges", {}) if paired else {}
+
+    def how_of(k):  # the rounds' spread beside the median they give
+        r = spread.get(k)
+        return how + (f" (rounds {r[0]:.2f}-{r[1]:.2f}x)" if r else "")
     if paired:
         s["paired"] = dict(src)
     c_lab = "fast" if paired else (s["c_best_variant"] or "n/a")
     targets = [check("numba_over_c", src.get("numba_over_c"),
-                     f"numba float64 1 thread / C ({c_lab} RNG), {m_lab}{how}"),
-               check("numba_over_floor", src["numba_over_floor"], f"numba float64 1 thread / floor, {m_lab}{how}"),
+                     f"numba float64 1 thread / C ({c_lab} RNG), {m_lab}{how_of('numba_over_c')}"),
+               check("numba_over_floor", src["numba_over_floor"],
+                     f"numba float64 1 thread / floor, {m_lab}{how_of('numba_over_floor')}"),
                check("float32_speedup_1e5", src["float32_speedup_big"] if big[1] == 100_000 else None,
-                     f"{TARGETS['float32_speedup_1e5'].label}{how}")]
+                     f"{TARGETS['float32_speedup_1e5'].label}{how_of('float32_speedup_big')}")]
     for t in threads:
         k = {100_000: "threads_speedup_1e5", 1_000_000: "threads_speedup_1e6"}.get(t["particles"])
         if k:
-            targets.append(check(k, src.get(f"threads_speedup_{t['particles']}"), f"{TARGETS[k].label}{how}"))
+            name = f"threads_speedup_{t['particles']}"
+            targets.append(check(k, src.get(name), f"{TARGETS[k].label}{how_of(name)}"))
     return s, targets
 
 

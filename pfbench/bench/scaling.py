@@ -70,7 +70,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
     from ..resources import filter_memory, fmt_bytes
     from . import c_reference
     from .report import check
-    from .timing import filter_ns, interleaved, paired_ratio
+    from .timing import filter_ns, interleaved, paired_ratio, ratio_range
 
     model = models.get("ob1")
     budget, source = _budget()
@@ -79,7 +79,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
     c_note = None
     bar = tqdm(total=len(jobs) * len(engines), desc="bench --scaling", disable=not progress,
                file=sys.stderr, leave=False)
-    paired = {}  # N_p -> median over rounds of the 1-thread / all-threads time
+    paired, spread = {}, {}  # N_p -> median over rounds of the 1-thread / all-threads time; its [min, max]
     for n, m in jobs:
         traj = None
         numba_rows = {}
@@ -129,6 +129,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
                     row["ns_per_particle_step"] = statistics.median(times[eng])
                 if len(times) == 2:
                     paired[n] = paired_ratio(times["numba_1t"], times["numba_all"])
+                    spread[n] = ratio_range(times["numba_1t"], times["numba_all"])
             bar.update(len(numba_rows))
     bar.close()
 
@@ -161,6 +162,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
                       memory_budget_bytes=budget, memory_budget_source=source,
                       numba_1t_ns_1e6_over_1e3=growth,
                       threads_speedup={str(n): s for n, s in speedup.items()},
+                      threads_speedup_rounds={str(n): spread.get(n) for n in speedup},
                       c_note=c_note, targets=targets)
 
 
@@ -213,7 +215,10 @@ def text(res: dict) -> list[str]:
         if r.get("skipped") and r["engine"] != "c_fast":
             out.append(f"skipped {r['label']} at N_p = {r['particles']}: {r['skipped']}")
     out.append(f"top of the range limited by: {res['top_limited_by']}")
-    sp = ", ".join(f"N_p={_pow10(int(n))}: {v:.2f}x" for n, v in res["threads_speedup"].items() if v is not None)
+    rounds = res.get("threads_speedup_rounds", {})
+    sp = ", ".join(f"N_p={_pow10(int(n))}: {v:.2f}x" + (f" (rounds {rounds[n][0]:.2f}-{rounds[n][1]:.2f}x)"
+                                                          if rounds.get(n) else "")
+                   for n, v in res["threads_speedup"].items() if v is not None)
     out.append(f"numba all threads vs 1 thread (median of per-round ratios): {sp}")
     out.extend(fmt(t) for t in res["targets"])
     return out

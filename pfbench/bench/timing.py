@@ -54,7 +54,19 @@ def interleaved(measures: dict, rounds: int) -> dict:
     return out
 
 
+def round_ratios(a: list, b: list) -> list:
+    """a_r / b_r for every round r with both timings (b_r > 0)."""
+    return [x / y for x, y in zip(a, b) if x is not None and y is not None and y > 0]
+
+
 def paired_ratio(a: list, b: list) -> float | None:
     """Median over rounds of a_r / b_r (None without a complete pair)."""
-    pairs = [x / y for x, y in zip(a, b) if x is not None and y is not None and y > 0]
+    pairs = round_ratios(a, b)
     return statistics.median(pairs) if pairs else None
+
+
+def ratio_range(a: list, b: list) -> list | None:
+    """[smallest, largest] a_r / b_r over the rounds (None without a complete pair): how far a
+    round's ratio strayed from the median that :func:`paired_ratio` reports."""
+    pairs = round_ratios(a, b)
+    return [min(pairs), max(pairs)] if pairs else None
