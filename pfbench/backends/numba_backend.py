@@ -415,9 +415,10 @@ def work_arrays(x, n_blocks: int, method: int) -> tuple:
     blocks and a :class:`~pfbench.filters.methods.Method` code, in its argument order: the two
     particle buffers, the log-weights kept between steps (rows of N_p only for a method that may
     skip a resampling, else rows of 0), the float rows of N_p (stratified uniforms, running sum,
-    log-weights that pass B turns into weights in place; ASIR adds its two lambda rows), the int row (N_p indices, then one estimate tile of merge marks
-    per block), four per-block rows (max, weight sum, sum w^2, cdf offset), the per-block moments
-    and the per-filter (current buffer, flat-weights) flags.
+    log-weights that pass B turns into weights in place; ASIR adds its two lambda rows), the int
+    row (N_p indices, then one estimate tile of merge marks per block), four per-block rows (max,
+    weight sum, sum w^2, cdf offset), the per-block moments and the per-filter (current buffer,
+    flat-weights) flags.
 
     Allocated here rather than in the kernel: each array constructor the kernel compiled cost
     about 0.1 s of a cold start. Only what the method touches: every page of a fresh array is

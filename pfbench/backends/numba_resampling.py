@@ -245,9 +245,10 @@ def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_
       farther than that from every integer compares with every i as the exact test does: K_j =
       floor(x_j) + 1. The fraction x_j - floor(x_j) is exact for x_j >= 0 and within 2^-54 for
       -1 < x_j < 0 (x_j >= -u), which ``tol``, twice the bound, leaves room for. A tile with no
-      x_j that close (on Ob1: every tile) needs no positions at all. Measured (Ob1 bootstrap, N_p = 1000, marginal cost of 2000 steps, two alternating runs
-      each): the whole filter 12.4-12.8 ns per particle-step, 14.4-14.9 ns when every tile takes
-      the positions and the exact corrections below.
+      x_j that close (on Ob1: every tile) needs no positions at all. Measured (Ob1 bootstrap,
+      N_p = 1000, marginal cost of 2000 steps, two alternating runs each): the whole filter
+      12.4-12.8 ns per particle-step, 14.4-14.9 ns when every tile takes the positions and the
+      exact corrections below.
     * Stratified (the positions carry their own uniforms, so the count is only within one), and a
       systematic tile with an x_j near an integer: the block's positions are computed into ``pos``
       [i0, i1) and each estimate is corrected by exact comparisons with them.

@@ -127,6 +127,7 @@ def test_a_guided_run_calls_the_model_by_address():
         pfbench.run_filter(model, tr.y, tr.u, method="guided", n_particles=8, backend="numba", seed=0)
         defined = _defines(getattr(kernel_module(model, "guided", "systematic"), f"run_{kind}"))
         assert f"run_{kind}" in defined
+        # numba's symbols carry each name's length: "8proposal" is the model's ``proposal`` itself
         for name in ("8proposal", "proposal_log_weight", "predictive_log_likelihood", "_into"):
             assert name not in defined, (kind, name)
 
