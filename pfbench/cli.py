@@ -458,30 +458,35 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
               help="Another results folder (e.g. a quick run kept beside a --full one): list every "
                    "claim whose verdict differs from it.")
 def report(out_root, strict, as_json, compare):
-    """Regenerate results/REPORT.md from the provenance records, each verified against the
-    checksums of its files. Damaged results are printed as warnings; they and the recipes that
-    have not been run are listed in the report's "Not reproduced / damaged" section."""
-    from .report import report_data, write_report
+    """Regenerate results/REPORT.md (the scorecard, with a report per paper beside it) from the
+    provenance records, each verified against the checksums of its files. Damaged results are
+    printed as warnings; they and the recipes that have not been run are listed in the report's
+    "Not reproduced / damaged" section. With --json the same data is printed and nothing is written."""
+    from .report import Problem, check_results, compare_verdicts, report_data, write_report
 
-    path, problems = write_report(out_root, compare)
     if as_json:
         from .io import to_json
 
-        click.echo(to_json(report_data(out_root, compare)))
+        data = report_data(out_root, compare)
+        click.echo(to_json(data))
+        damaged = [Problem(**p) for p in data["problems"] if p["damaged"]]
+        for p in damaged:
+            click.echo(f"warning: {_one_line(p.line())}", err=True)
+        if strict and damaged:
+            raise PfbenchError(f"report --strict: {len(damaged)} result(s) damaged or incomplete")
+        return
+    path, problems = write_report(out_root, compare)
     damaged = [p for p in problems if p.damaged]
     for p in damaged:
         click.echo(f"warning: {_one_line(p.line())}", err=True)
-    if not as_json:
-        click.echo(f"wrote {path}")
-        if compare is not None:
-            from .report import check_results, compare_verdicts
-
-            cmp = compare_verdicts(check_results(out_root)[0], compare)
-            click.echo(f"against {compare}: {cmp['matched']} claims matched, {len(cmp['changed'])} "
-                       "changed verdict" + "".join(f"; {t}: {n}" for t, n in cmp["transitions"].items()))
-    if len(problems) > len(damaged) and not as_json:
-        click.echo(f"{len(problems) - len(damaged)} recipe(s) not run or with leftovers of an "
-                   "interrupted run (listed in the report)")
+    click.echo(f"wrote {path}")
+    if compare is not None:
+        cmp = compare_verdicts(check_results(out_root)[0], compare)
+        click.echo(f"against {compare}: {cmp['matched']} claims matched, {len(cmp['changed'])} "
+                   "changed verdict" + "".join(f"; {t}: {n}" for t, n in cmp["transitions"].items()))
+    if len(problems) > len(damaged):
+        click.echo(f"{len(problems) - len(damaged)} note(s): recipes not run, leftovers of an "
+                   "interrupted run or a sentence scored twice (listed in the report)")
     if strict and damaged:
         raise PfbenchError(f"report --strict: {len(damaged)} result(s) damaged or incomplete "
                            f"(listed in {path})")

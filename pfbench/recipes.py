@@ -369,20 +369,47 @@ class RecipeContext:
         """Record one paper-vs-ours line (paper may be None or a claim in words)."""
         self.comparisons.append(Comparison(quantity, ours, paper, unit, note))
 
-    def claim(self, claim: str, where: str, quantity: str, outcome, paper=None, note: str = "") -> None:
-        """Record a claim of the paper that this recipe tests, with its computed verdict.
+    def claim(self, claim: str, where: str, quantity: str, outcome, paper=None, note: str = "", *,
+              kind: str = "finding", reading: str = "", others=()) -> None:
+        """Record one sentence of the paper that this recipe tests, with its computed verdict.
 
-        ``claim``: the claim, quoted or paraphrased; ``where``: its location ("[Thesis] §4.4.5,
+        ``claim``: the sentence, quoted or paraphrased; ``where``: its location ("[Thesis] §4.4.5,
         Fig. 4.9"); ``quantity``: what we measure; ``outcome``: a :class:`pfbench.verdicts.Outcome`
         from one of the rules of :mod:`pfbench.verdicts` (never a typed verdict); ``paper``: the
-        paper's value or direction as it states it.
+        paper's value or direction as it states it; ``note``: what the reader should know (for
+        kind ``by construction``, the reason it holds whatever the data: required).
+
+        ``kind``: :data:`~pfbench.verdicts.FINDING` (scored), :data:`~pfbench.verdicts.SETUP` or
+        :data:`~pfbench.verdicts.CONSTRUCTION` (shown, never scored). One sentence is one finding:
+        recording the same (claim, where) finding twice is a bug in the recipe (RuntimeError).
+        Where the sentence admits several readings, ``reading`` says which one ``outcome`` scores
+        and why it is the primary one, and ``others`` (:class:`pfbench.verdicts.Reading`) are the
+        other readings, shown beneath it as sensitivity rows; the claim is marked "depends on
+        reading" when their verdicts differ from the primary one's.
         """
-        from .verdicts import Outcome
+        from .verdicts import KINDS, CONSTRUCTION, FINDING, Outcome, Reading
 
         if not isinstance(outcome, Outcome):
             raise TypeError("claim() needs an Outcome from pfbench.verdicts (verdicts are computed)")
+        if kind not in KINDS:
+            raise ValueError(f"claim kind must be one of {KINDS}, got {kind!r}")
+        if kind == CONSTRUCTION and not note.strip():
+            raise ValueError(f"claim {claim!r}: a 'by construction' claim needs the reason in note=")
+        others = list(others)
+        if not all(isinstance(o, Reading) for o in others):
+            raise TypeError("claim(others=...) takes pfbench.verdicts.Reading rows")
+        if others and not reading.strip():
+            raise ValueError(f"claim {claim!r}: with other readings, say which reading is primary "
+                             "and why (reading=...)")
+        if kind == FINDING and any(c["kind"] == FINDING and c["claim"] == claim and c["where"] == where
+                                   for c in self.claims):
+            raise RuntimeError(f"recipe {self.recipe.id} scores the sentence {claim!r} ({where}) twice: "
+                               "one sentence is one finding; pass other readings as others=")
         self.claims.append({"claim": claim, "where": where, "quantity": quantity, "paper": paper,
-                            "note": note, **outcome.as_dict()})
+                            "note": note, "kind": kind, "reading": reading,
+                            "sensitivity": [o.as_dict() for o in others],
+                            "depends_on_reading": any(o.outcome.verdict != outcome.verdict for o in others),
+                            **outcome.as_dict()})
 
     def note(self, text: str) -> None:
         """A sentence for the report: what differs from the paper and why."""

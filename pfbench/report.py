@@ -10,7 +10,8 @@ from . import io
 from .errors import PfbenchError
 from . import recipes as _recipes
 from .recipes import PAPERS, _leftovers, _lock_path, discover, needs_hint
-from .verdicts import VERDICTS
+from .verdicts import (AGREE, CONSTRUCTION, DEFINITIONS, DISAGREE, FINDING, KINDS, SETUP,
+                       VERDICTS, expected_false)
 
 
 @dataclass
@@ -128,17 +129,64 @@ def _locked(out_dir: Path, name: str) -> bool:
         os.close(fd)
 
 
+def _kind(c: dict) -> str:
+    """A claim's kind (:data:`pfbench.verdicts.KINDS`); records written before kinds existed hold findings."""
+    return c.get("kind") or FINDING
+
+
+def _claims(record: dict) -> list[dict]:
+    return [c for c in record.get("claims") or [] if isinstance(c, dict)]
+
+
+def scored_findings(records: list[dict]) -> tuple[dict[str, list[dict]], list[Problem]]:
+    """Per paper, the findings the scorecard counts (one per sentence), and a problem line for each
+    sentence that two recipes score (counted once, under the first recipe)."""
+    out: dict[str, list[dict]] = {paper: [] for paper in PAPERS}
+    seen: dict[tuple, str] = {}
+    problems = []
+    for r in records:
+        paper = r["recipe"].split(":", 1)[0]
+        for c in _claims(r):
+            if _kind(c) != FINDING or c.get("verdict") not in VERDICTS or paper not in out:
+                continue
+            key = (paper, str(c.get("where")), str(c.get("claim")))
+            if key in seen:
+                problems.append(Problem(r["recipe"], f"scores the sentence {c.get('claim')!r} ({c.get('where')}) "
+                                        f"that {seen[key]} scores too (counted once)",
+                                        "score a sentence in one recipe", damaged=False))
+                continue
+            seen[key] = r["recipe"]
+            out[paper].append(dict(c, recipe=r["recipe"]))
+    return out, problems
+
+
 def scorecard(records: list[dict]) -> dict:
-    """Per paper: how many claims, and how many of each verdict (:mod:`pfbench.verdicts`)."""
+    """Per paper: the sentences scored and how many of each verdict, how many depend on the reading,
+    the setup checks (how many hold) and the claims true by construction, the mode and the recipes
+    behind them, and the interval decisions with the number expected wrong by chance
+    (:func:`pfbench.verdicts.expected_false`)."""
+    findings, _ = scored_findings(records)
     out = {}
     for paper in PAPERS:
+        recs = [r for r in records if r["recipe"].startswith(paper + ":")]
         counts = {v: 0 for v in VERDICTS}
-        for r in records:
-            if r["recipe"].startswith(paper + ":"):
-                for c in r.get("claims") or []:
-                    if isinstance(c, dict) and c.get("verdict") in counts:
-                        counts[c["verdict"]] += 1
-        out[paper] = {"claims": sum(counts.values()), **counts}
+        for c in findings[paper]:
+            counts[c["verdict"]] += 1
+        others = [c for r in recs for c in _claims(r) if _kind(c) != FINDING]
+        setup = [c for c in others if _kind(c) == SETUP]
+        stat = sum(1 for c in findings[paper] if c.get("interval") is not None
+                   and c["verdict"] in (AGREE, DISAGREE))
+        runs = [int(c["n"]) for c in findings[paper] if isinstance(c.get("n"), int)]
+        out[paper] = {"claims": sum(counts.values()), **counts,
+                      "depends on reading": sum(1 for c in findings[paper] if c.get("depends_on_reading")),
+                      "setup checks": len(setup),
+                      "setup checks holding": sum(1 for c in setup if c.get("verdict") == AGREE),
+                      "by construction": sum(1 for c in others if _kind(c) == CONSTRUCTION),
+                      "interval decisions": stat,
+                      "expected wrong by chance": round(expected_false(stat), 2),
+                      "recipes": len(recs),
+                      "modes": sorted({str(r.get("mode")) for r in recs}),
+                      "runs": [min(runs), max(runs)] if runs else None}
     return out
 
 
@@ -153,14 +201,28 @@ def _fmt(v) -> str:
     return " ".join(text.split()).replace("|", "\\|")
 
 
+def _verdict_cell(c: dict) -> str:
+    text = f"**{c.get('verdict')}**"
+    return text + " (depends on reading)" if c.get("depends_on_reading") else text
+
+
 def _claims_table(claims: list[dict]) -> list[str]:
-    lines = ["| claim | where | quantity | ours | 95 % interval | paper | verdict | rule |",
-             "|---|---|---|---|---|---|---|---|"]
+    """A Markdown table of claims; each claim's other readings follow it as indented rows."""
+    lines = ["| claim | where | quantity | ours | 95 % interval | band | paper | verdict | rule |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for c in claims:
-        rule = f"{c.get('rule')}{'; ' + c['note'] if c.get('note') else ''}"
+        rule = c.get("rule")
+        if c.get("reading"):
+            rule = f"primary reading: {c['reading']}; {rule}"
+        if c.get("note"):
+            rule = f"{rule}; {c['note']}"
         lines.append(f"| {_fmt(c.get('claim'))} | {_fmt(c.get('where'))} | {_fmt(c.get('quantity'))} | "
-                     f"{_fmt(c.get('ours'))} | {_fmt(c.get('interval'))} | {_fmt(c.get('paper'))} | "
-                     f"**{c.get('verdict')}** | {_fmt(rule)} |")
+                     f"{_fmt(c.get('ours'))} | {_fmt(c.get('interval'))} | {_fmt(c.get('band'))} | "
+                     f"{_fmt(c.get('paper'))} | {_verdict_cell(c)} | {_fmt(rule)} |")
+        for o in c.get("sensitivity") or []:
+            lines.append(f"| ↳ other reading: {_fmt(o.get('reading'))} | | {_fmt(o.get('quantity'))} | "
+                         f"{_fmt(o.get('ours'))} | {_fmt(o.get('interval'))} | {_fmt(o.get('band'))} | | "
+                         f"{o.get('verdict')} | {_fmt(o.get('rule'))} |")
     return lines + [""]
 
 
@@ -225,11 +287,17 @@ def _comparison_lines(cmp: dict) -> list[str]:
 
 
 def report_data(out_root: str | Path = "results", compare: str | Path | None = None) -> dict:
-    """The report as data (``pfbench report --json``): scorecard, claims per recipe, problems, and
-    with ``compare`` the verdict changes against another result set (:func:`compare_verdicts`)."""
+    """The report as data (``pfbench report --json``): scorecard, the definitions of the verdict
+    words and claim kinds, claims per recipe, problems, and with ``compare`` the verdict changes
+    against another result set (:func:`compare_verdicts`)."""
     records, problems = check_results(out_root)
+    problems += scored_findings(records)[1]
     extra = {"comparison": compare_verdicts(records, compare)} if compare is not None else {}
-    return {**extra, "scorecard": scorecard(records),
+    card = scorecard(records)
+    total = sum(c["interval decisions"] for c in card.values())
+    return {**extra, "scorecard": card,
+            "multiplicity": {"interval decisions": total, "expected wrong by chance": round(expected_false(total), 2)},
+            "definitions": dict(DEFINITIONS),
             "recipes": {r["recipe"]: {"mode": r.get("mode"), "seed": r.get("seed"),
                                       "damaged": bool(r.get("damaged")), "claims": r.get("claims") or []}
                         for r in records},
@@ -237,76 +305,124 @@ def report_data(out_root: str | Path = "results", compare: str | Path | None = N
                          for p in problems]}
 
 
+def _anchor(title: str) -> str:
+    """The anchor GitHub-flavoured Markdown gives a heading."""
+    keep = "".join(ch for ch in title.lower() if ch.isalnum() or ch in " -_")
+    return keep.replace(" ", "-")
+
+
+def _scorecard_lines(card: dict) -> list[str]:
+    lines = ["| paper | mode | recipes | sentences scored | agree | disagree | undecided | not reproducible "
+             "| depends on reading | setup checks (holding) | by construction | runs per statistical claim |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    tot = {k: 0 for k in ("recipes", "claims", *VERDICTS, "depends on reading", "setup checks",
+                          "setup checks holding", "by construction")}
+    for paper, c in card.items():
+        for k in tot:
+            tot[k] += c[k]
+        runs = f"{c['runs'][0]}-{c['runs'][1]}" if c["runs"] else "-"
+        lines.append(f"| [{paper}]({paper}/REPORT.md) | {', '.join(c['modes']) or '-'} | {c['recipes']} | "
+                     f"{c['claims']} | {c['agree']} | {c['disagree']} | {c['undecided']} | "
+                     f"{c['not reproducible']} | {c['depends on reading']} | "
+                     f"{c['setup checks']} ({c['setup checks holding']}) | {c['by construction']} | {runs} |")
+    lines.append(f"| **all** | | {tot['recipes']} | {tot['claims']} | {tot['agree']} | {tot['disagree']} | "
+                 f"{tot['undecided']} | {tot['not reproducible']} | {tot['depends on reading']} | "
+                 f"{tot['setup checks']} ({tot['setup checks holding']}) | {tot['by construction']} | |")
+    stat = sum(c["interval decisions"] for c in card.values())
+    lines += ["", f"{stat} of the agree/disagree verdicts are decisions from a 95 % interval of random "
+              f"runs; at most about {expected_false(stat):.1f} of them are expected to be wrong by chance "
+              "alone (5 % each), so a lone surprising verdict is not evidence by itself: rerun it with "
+              "more runs (`--full`, or `--option runs=...`).", ""]
+    return lines
+
+
+def _recipe_lines(r: dict, paper: str) -> list[str]:
+    """One recipe's section of a paper's report: findings, setup checks, claims true by
+    construction, the paper-vs-ours table, notes and figures (linked relative to the paper folder)."""
+    flag = " (DAMAGED: see the main report)" if r.get("damaged") else ""
+    lines = [f"## `{r['recipe']}`: {r.get('title', '')}{flag}", ""]
+    load = (r.get("host") or {}).get("load_average")
+    busy = (f", load average {load[0]:g}/{load[1]:g}/{load[2]:g} (1/5/15 min) on "
+            f"{(r.get('host') or {}).get('cores')} cores" if isinstance(load, list) and len(load) == 3 else "")
+    lines += [f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
+              f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, {r.get('created_utc')}{busy}", ""]
+    claims = _claims(r)
+    for kind, head in ((FINDING, "Findings (scored)"), (SETUP, "Setup checks (not scored)"),
+                       (CONSTRUCTION, "True by construction (not scored)")):
+        these = [c for c in claims if _kind(c) == kind]
+        if these:
+            lines += [f"**{head}**", ""] + _claims_table(these)
+    comps = [c for c in r.get("comparisons") or [] if isinstance(c, dict)]
+    if comps:
+        lines += ["| quantity | ours | paper | deviation | note |", "|---|---|---|---|---|"]
+        for c in comps:
+            dev = c.get("deviation")
+            q = str(c.get("quantity")) + (f" [{c['unit']}]" if c.get("unit") else "")
+            ours, pap = c.get("ours"), c.get("paper")
+            if ours is None and c.get("ours" + io.NONFINITE_SUFFIX):
+                ours = c["ours" + io.NONFINITE_SUFFIX]
+            dev = f"{dev:+.1%}" if isinstance(dev, (int, float)) else ""
+            lines.append(f"| {_fmt(q)} | {_fmt(ours)} | {_fmt(pap)} | {dev} | {_fmt(c.get('note', ''))} |")
+        lines.append("")
+    lines += [f"- {n}" for n in r.get("notes") or []]
+    outs = [Path(str(o)).name for o in r.get("outputs") or []]
+    pngs = [o for o in outs if o.endswith(".png")]
+    if pngs:
+        lines += [""] + [f"![{r['recipe']}: {o}]({o})" for o in pngs]
+    if outs:
+        lines += ["", "Outputs: " + ", ".join(f"`{o}`" for o in outs)]
+    return lines + [""]
+
+
+def _paper_report(paper: str, title: str, recs: list[dict], unrun: list[Problem]) -> str:
+    lines = [f"# {paper}: {title}", "", "[Back to the scorecard](../REPORT.md)", "", "## Contents", ""]
+    lines += [f"- [`{r['recipe']}`: {r.get('title', '')}](#{_anchor(r['recipe'] + ' ' + str(r.get('title', '')))})"
+              for r in recs]
+    lines += [f"- {p.line()}" for p in unrun] + [""]
+    for r in recs:
+        lines += _recipe_lines(r, paper)
+    return "\n".join(lines) + "\n"
+
+
 def write_report(out_root: str | Path = "results", compare: str | Path | None = None
                  ) -> tuple[Path, list[Problem]]:
-    """Regenerate ``results/REPORT.md`` from every provenance record under ``out_root``, each
-    verified against its artefacts (:func:`verify`): the scorecard first (claims and verdicts per
-    paper), then per recipe its claims, paper-vs-ours table, notes and figures (inline); with
-    ``compare`` (another results root, e.g. a quick run kept beside a paper-scale one) the
-    verdicts that differ from it, after the scorecard. Returns the path and the problems, which
-    the report lists in a "Not reproduced / damaged" section."""
+    """Regenerate ``results/REPORT.md`` and ``results/<paper>/REPORT.md`` from every provenance
+    record under ``out_root``, each verified against its artefacts (:func:`verify`).
+
+    The main report opens with the scorecard (sentences scored per paper, verdicts, claims that
+    depend on the reading, setup checks, claims true by construction, the mode and the number of
+    runs; the number of interval decisions expected wrong by chance), then what each verdict word
+    and claim kind means, a table of contents, with ``compare`` (another results root, e.g. a quick
+    run kept beside a paper-scale one) the verdicts that differ from it, and the "Not reproduced /
+    damaged" list. Each paper's report holds its recipes' claims, paper-vs-ours tables, notes and
+    figures. Returns the main report's path and the problems.
+    """
     out_root = Path(out_root)
     records, problems = check_results(out_root)
+    problems = problems + scored_findings(records)[1]
     card = scorecard(records)
+    works = "; ".join(f"[{p}]({p}/REPORT.md): {t}" for p, t in PAPERS.items())
     lines = ["# pfbench results report", "",
              "Generated by `pfbench report` from the provenance records under `results/`. Every claim's "
-             "verdict is computed from our data by the rule shown beside it (`pfbench.verdicts`).", "",
-             "## Scorecard", "",
-             "| paper | claims | agree | disagree | undecided | not reproducible |",
-             "|---|---|---|---|---|---|"]
-    for paper, c in card.items():
-        lines.append(f"| {paper} | {c['claims']} | {c['agree']} | {c['disagree']} | {c['undecided']} | "
-                     f"{c['not reproducible']} |")
-    lines.append("")
+             "verdict is computed from our data by the rule shown beside it (`pfbench.verdicts`). "
+             f"Papers: {works}.", "",
+             "## Contents", "", "- [Scorecard](#scorecard)", "- [What the words mean](#what-the-words-mean)"]
+    if compare is not None:
+        lines.append(f"- [Verdicts against `{compare}`](#{_anchor('Verdicts against ' + str(compare))})")
+    lines += [f"- [{p}: {t}]({p}/REPORT.md)" for p, t in PAPERS.items()]
+    if problems:
+        lines.append("- [Not reproduced / damaged](#not-reproduced--damaged)")
+    lines += ["", "## Scorecard", ""] + _scorecard_lines(card)
+    lines += ["## What the words mean", ""]
+    lines += [f"- **{w}**: {DEFINITIONS[w]}" for w in (*VERDICTS, *KINDS)] + [""]
     if compare is not None:
         lines += _comparison_lines(compare_verdicts(records, compare))
     for paper, title in PAPERS.items():
         recs = [r for r in records if r["recipe"].startswith(paper + ":")]
         unrun = [p for p in problems if p.recipe.startswith(paper + ":") and p.what.startswith("not run")]
-        if not recs and not unrun:
-            continue
-        lines += [f"## {paper}: {title}", ""]
-        lines += [f"- {p.line()}" for p in unrun] + ([""] if unrun else [])
-        for r in recs:
-            flag = " (DAMAGED: see below)" if r.get("damaged") else ""
-            lines.append(f"### `{r['recipe']}`: {r.get('title', '')}{flag}")
-            lines.append("")
-            load = (r.get("host") or {}).get("load_average")
-            busy = (f", load average {load[0]:g}/{load[1]:g}/{load[2]:g} (1/5/15 min) on "
-                    f"{(r.get('host') or {}).get('cores')} cores" if isinstance(load, list) and len(load) == 3 else "")
-            lines.append(f"mode {r.get('mode')}, backend {r.get('backend')}, seed {r.get('seed')}, "
-                         f"{r.get('elapsed_s')} s, git {str(r.get('git_sha'))[:12]}, "
-                         f"{r.get('created_utc')}{busy}")
-            lines.append("")
-            claims = [c for c in r.get("claims") or [] if isinstance(c, dict)]
-            if claims:
-                lines += _claims_table(claims)
-            comps = [c for c in r.get("comparisons") or [] if isinstance(c, dict)]
-            if comps:
-                lines.append("| quantity | ours | paper | deviation | note |")
-                lines.append("|---|---|---|---|---|")
-                for c in comps:
-                    dev = c.get("deviation")
-                    q = str(c.get("quantity")) + (f" [{c['unit']}]" if c.get("unit") else "")
-                    ours, pap = c.get("ours"), c.get("paper")
-                    if ours is None and c.get("ours" + io.NONFINITE_SUFFIX):
-                        ours = c["ours" + io.NONFINITE_SUFFIX]
-                    dev = f"{dev:+.1%}" if isinstance(dev, (int, float)) else ""
-                    lines.append(f"| {_fmt(q)} | {_fmt(ours)} | {_fmt(pap)} | {dev} | {_fmt(c.get('note', ''))} |")
-                lines.append("")
-            for n in r.get("notes") or []:
-                lines.append(f"- {n}")
-            outs = [Path(str(o)).name for o in r.get("outputs") or []]
-            pngs = [o for o in outs if o.endswith(".png")]
-            if pngs:
-                lines.append("")
-                lines += [f"![{r['recipe']}: {o}]({paper}/{o})" for o in pngs]
-            if outs:
-                lines.append("")
-                lines.append("Outputs: " + ", ".join(f"`{o}`" for o in outs))
-            lines.append("")
+        if recs or unrun:
+            io.make_dirs(out_root / paper)
+            io.write_text(out_root / paper / "REPORT.md", _paper_report(paper, title, recs, unrun))
     if problems:
-        lines += ["## Not reproduced / damaged", ""]
-        lines += [f"- {p.line()}" for p in problems]
-        lines.append("")
+        lines += ["## Not reproduced / damaged", ""] + [f"- {p.line()}" for p in problems] + [""]
     return io.write_text(out_root / "REPORT.md", "\n".join(lines) + "\n"), problems

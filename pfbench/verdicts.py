@@ -4,28 +4,55 @@ A recipe records every claim of the paper it tests with :meth:`pfbench.recipes.R
 passing one of the rules below; the rule computes the verdict from the data, so no verdict string
 is ever typed by hand. The report counts them per paper (the scorecard).
 
-Verdicts: ``agree``, ``disagree``, ``undecided`` (our data cannot tell at this scale), and
-``not reproducible`` (the claim needs something we do not have, e.g. the paper's measured data;
-the rule says why).
+Verdicts
+--------
+``agree``
+    our 95 % interval lies wholly inside the band that the paper's statement allows (or, for a
+    direction, wholly on the paper's side of zero): the data could have shown otherwise and did not.
+``disagree``
+    our 95 % interval lies wholly outside that band (or wholly on the other side of zero).
+``undecided``
+    the interval straddles an edge of the band: our data cannot tell at this scale.
+``not reproducible``
+    the claim needs something we do not have (the paper's measured data, its program, a lost
+    equation, a plant whose asymmetry we cannot simulate); the rule says why.
 
-Rules (all at a 95 % level):
+Claim kinds
+-----------
+``finding`` (:data:`FINDING`)
+    a result of the paper, scored in the scorecard. One paper sentence is one finding; where the
+    sentence admits several readings, the recipe scores its declared primary reading and lists the
+    others as sensitivity rows (:class:`Reading`).
+``setup check`` (:data:`SETUP`)
+    a parameter or equation that the paper states and the recipe uses (e.g. the degree of a
+    transfer function the paper prints): shown with its recipe, never scored.
+``by construction`` (:data:`CONSTRUCTION`)
+    true whatever the data (e.g. a triangle inequality, a quantity fixed by the plant, a number
+    derived from the very table it is compared with): shown with the reason, never counted as
+    agreement.
 
-* :func:`direction` - the paper says a quantity is positive (or negative), e.g. "MultiPDF with
-  N_f = 10 beats the PF": from per-run paired differences, the 95 % t-interval of their mean.
-  agree if it lies entirely on the paper's side of zero, disagree if entirely on the other side,
-  undecided if it contains zero.
-* :func:`no_dependence` - the paper says a paired difference is "not significant": disagree if
-  the 95 % t-interval of its mean excludes 0, agree if it lies within a stated equivalence margin,
-  undecided otherwise.
-* :func:`close_to` - a numeric claim: agree if |ours - paper| <= tol |paper| (tol stated by the
-  recipe, with its reason), widened by 1.96 standard errors when ours is a Monte Carlo mean;
-  disagree otherwise.
-* :func:`proportion` - a rate (e.g. "fails in 8 % of runs"): the 95 % Wilson interval of k/n; agree
-  if it meets [p - tol, p + tol], disagree if it lies outside, undecided if the interval is wider
-  than 4 tol (too few runs to tell).
-* :func:`holds` - a qualitative claim decided by a computed boolean (e.g. "the EKF converges to the
-  wrong angle in this run"): agree / disagree from the test the recipe computed and describes.
+Rules (all at a 95 % level; each takes its tolerance band from the recipe, with the reason)
+--------------------------------------------------------------------------------------------
+* :func:`direction` - the paper says a quantity is positive (or negative): the 95 % t-interval of
+  the mean of per-run paired differences, agree if wholly on the paper's side of 0, disagree if
+  wholly on the other side, undecided if it contains 0.
+* :func:`close_to` - a number: the band is paper ± tol |paper|; our interval is ours ± 1.96 se
+  (a point when ``se`` is 0, e.g. a deterministic computation) or the one given. Equivalence test:
+  agree when the interval lies inside the band (two one-sided tests, each at 2.5 %), disagree when
+  it lies wholly outside, undecided otherwise.
+* :func:`in_band` - the same decision for the t-interval of the mean of per-run samples against
+  a band [lo, hi] given directly.
+* :func:`no_dependence` - the paper says a paired difference is "not significant": :func:`in_band`
+  with the band ±margin around 0.
+* :func:`proportion` - a rate (e.g. "fails in 8 % of runs"): the 95 % Wilson (or exact
+  Clopper-Pearson) interval of k/n from :func:`scipy.stats.binomtest` against paper ± tol, with the
+  same three outcomes.
+* :func:`holds` - a qualitative claim decided by a computed, deterministic test the recipe
+  describes (agree / disagree).
 * :func:`not_reproducible` - with the reason.
+
+With many decisions at 95 %, some are wrong by chance: :func:`expected_false` gives the number the
+scorecard states.
 """
 from __future__ import annotations
 
@@ -36,7 +63,30 @@ import numpy as np
 
 AGREE, DISAGREE, UNDECIDED, NOT_REPRODUCIBLE = "agree", "disagree", "undecided", "not reproducible"
 VERDICTS = (AGREE, DISAGREE, UNDECIDED, NOT_REPRODUCIBLE)
+FINDING, SETUP, CONSTRUCTION = "finding", "setup check", "by construction"
+KINDS = (FINDING, SETUP, CONSTRUCTION)
+LEVEL = 0.95
 Z95 = 1.959963984540054
+
+#: one paragraph per verdict word and claim kind, as the report prints them
+DEFINITIONS = {
+    AGREE: "our 95 % interval lies wholly inside the band the paper's statement allows (for a "
+           "direction: wholly on the paper's side of zero), so the data could have shown otherwise "
+           "and did not.",
+    DISAGREE: "our 95 % interval lies wholly outside that band (or wholly on the other side of zero).",
+    UNDECIDED: "the interval straddles an edge of the band: at this number of runs our data cannot "
+               "tell.",
+    NOT_REPRODUCIBLE: "the claim rests on something we do not have (the paper's measured data or "
+                      "program, a lost equation, a guessed noise level, a plant asymmetry a "
+                      "simulation cannot have); the rule gives the reason.",
+    FINDING: "a result of the paper, scored. One sentence of the paper is one finding; where it "
+             "admits several readings the recipe scores its declared primary reading and shows the "
+             "others beneath as sensitivity rows (\"depends on reading\" when their verdicts differ).",
+    SETUP: "a parameter or equation the paper states and the recipe uses: shown with the recipe, "
+           "never scored.",
+    CONSTRUCTION: "true whatever the data (e.g. a triangle inequality, or a number derived from the "
+                  "very table it is compared with): shown with the reason, never counted as agreement.",
+}
 
 
 @dataclass(frozen=True)
@@ -48,30 +98,72 @@ class Outcome:
     ours: float | str | None = None
     interval: tuple[float, float] | None = None
     n: int | None = None
+    band: tuple[float, float] | None = None
+
+    @property
+    def statistical(self) -> bool:
+        """Whether the verdict is a decision from a 95 % interval of random data (it can be wrong
+        by chance; :func:`expected_false`)."""
+        return self.interval is not None and self.verdict in (AGREE, DISAGREE)
 
     def as_dict(self) -> dict:
         d = asdict(self)
-        if self.interval is not None:
-            d["interval"] = [float(v) for v in self.interval]
+        for key in ("interval", "band"):
+            if d[key] is not None:
+                d[key] = [float(v) for v in d[key]]
         return d
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One other reading of a claim's sentence (a sensitivity row beneath the primary reading):
+    what the reading is, what it measures and its computed outcome."""
+
+    reading: str
+    quantity: str
+    outcome: Outcome
+
+    def as_dict(self) -> dict:
+        return {"reading": self.reading, "quantity": self.quantity, **self.outcome.as_dict()}
 
 
 def _t95(dof: int) -> float:
     from scipy.stats import t
 
-    return float(t.ppf(0.975, dof))
+    return float(t.ppf(0.5 + LEVEL / 2, dof))
+
+
+def band_verdict(lo: float, hi: float, band_lo: float, band_hi: float) -> str:
+    """Three outcomes of an interval [lo, hi] against a band [band_lo, band_hi]: agree when the
+    interval lies inside the band, disagree when the two do not meet, undecided otherwise."""
+    if not all(math.isfinite(v) for v in (lo, hi)) or math.isnan(band_lo) or math.isnan(band_hi):
+        return UNDECIDED
+    if band_lo <= lo and hi <= band_hi:
+        return AGREE
+    if hi < band_lo or lo > band_hi:
+        return DISAGREE
+    return UNDECIDED
+
+
+def t_interval(samples) -> tuple[float, float, float, int] | None:
+    """(mean, lo, hi, n): the 95 % t-interval of the mean of the finite ``samples``; None with
+    fewer than 2 finite samples."""
+    x = np.asarray(samples, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    if x.size < 2:
+        return None
+    mean = float(x.mean())
+    half = _t95(x.size - 1) * float(x.std(ddof=1)) / math.sqrt(x.size)
+    return mean, mean - half, mean + half, int(x.size)
 
 
 def direction(samples, sign: int = +1, what: str = "difference") -> Outcome:
     """Paired differences ``samples`` (one per run) whose mean the paper says has sign ``sign``."""
-    x = np.asarray(samples, dtype=float).ravel()
-    x = x[np.isfinite(x)]
-    n = x.size
-    if n < 2:
+    ti = t_interval(samples)
+    if ti is None:
+        n = int(np.isfinite(np.asarray(samples, dtype=float)).sum())
         return Outcome(UNDECIDED, f"fewer than 2 finite runs of the {what}", n=n)
-    mean = float(x.mean())
-    half = _t95(n - 1) * float(x.std(ddof=1)) / math.sqrt(n)
-    lo, hi = mean - half, mean + half
+    mean, lo, hi, n = ti
     want = "> 0" if sign > 0 else "< 0"
     rule = f"95 % t-interval of the mean {what} over {n} runs; the paper says {want}"
     if (sign > 0 and lo > 0) or (sign < 0 and hi < 0):
@@ -83,67 +175,84 @@ def direction(samples, sign: int = +1, what: str = "difference") -> Outcome:
     return Outcome(verdict, rule, mean, (lo, hi), n)
 
 
+def in_band(samples, lo: float, hi: float, what: str, why: str = "") -> Outcome:
+    """The paper says the mean of ``samples`` lies in [lo, hi] (``why``: the band's reason): the 95 %
+    t-interval of the mean against the band (:func:`band_verdict`)."""
+    ti = t_interval(samples)
+    if ti is None:
+        return Outcome(UNDECIDED, f"fewer than 2 finite runs of the {what}", band=(lo, hi))
+    mean, ilo, ihi, n = ti
+    rule = (f"95 % t-interval of the mean {what} over {n} runs inside [{lo:.4g}, {hi:.4g}]: agree if "
+            "wholly inside, disagree if wholly outside, undecided otherwise")
+    if why:
+        rule += f" ({why})"
+    return Outcome(band_verdict(ilo, ihi, lo, hi), rule, mean, (ilo, ihi), n, (lo, hi))
+
+
 def no_dependence(diffs, margin: float, what: str) -> Outcome:
-    """Equivalence: the paper says a paired difference is "not significant". Disagree if the 95 %
-    t-interval of the mean difference excludes 0 (a significant dependence), agree if it lies within
-    +-``margin``, undecided otherwise (the interval of :func:`direction`)."""
-    d = direction(diffs, +1, what)
-    if d.interval is None:
-        return d
-    lo, hi = d.interval
-    rule = (f"95 % t-interval of the mean {what} over {d.n} runs: disagree if it excludes 0, agree if "
-            f"it lies within ±{margin:g}, undecided otherwise")
-    if lo > 0 or hi < 0:
-        verdict = DISAGREE
-    elif -margin <= lo and hi <= margin:
-        verdict = AGREE
-    else:
-        verdict = UNDECIDED
-    return Outcome(verdict, rule, d.ours, d.interval, d.n)
+    """The paper says a paired difference is "not significant": :func:`in_band` with the
+    equivalence margin ±``margin`` (agree only when the whole interval lies within it)."""
+    return in_band(diffs, -margin, margin, what, f"equivalence margin ±{margin:g}")
 
 
-def close_to(ours: float, paper: float, tol: float, se: float = 0.0, why: str = "") -> Outcome:
-    """Numeric claim: agree if |ours - paper| <= tol |paper| + 1.96 se (``why``: the tolerance's reason)."""
+def close_to(ours: float, paper: float, tol: float, se: float = 0.0, why: str = "",
+             interval: tuple[float, float] | None = None) -> Outcome:
+    """Numeric claim: ours against the band paper ± tol |paper| (``why``: the tolerance's reason).
+
+    Our interval is ``interval`` when given, else ours ± 1.96 ``se`` (a point when ``se`` is 0).
+    """
     ours, paper = float(ours), float(paper)
     if not (math.isfinite(ours) and math.isfinite(paper)):
         return Outcome(UNDECIDED, "ours or the paper's value is not finite", ours)
-    bound = tol * abs(paper) + Z95 * float(se)
-    rule = f"|ours - paper| <= {tol:.0%} of the paper's value" + (" + 1.96 se" if se else "")
+    band = (paper - tol * abs(paper), paper + tol * abs(paper))
+    if interval is None:
+        interval = (ours - Z95 * float(se), ours + Z95 * float(se))
+    lo, hi = float(interval[0]), float(interval[1])
+    point = lo == hi
+    rule = (f"{'ours' if point else 'our 95 % interval'} within {tol:.0%} of the paper's value "
+            f"({'agree if inside, disagree otherwise' if point else 'agree if wholly inside, disagree if wholly outside, undecided otherwise'})")
     if why:
         rule += f" ({why})"
-    verdict = AGREE if abs(ours - paper) <= bound else DISAGREE
-    return Outcome(verdict, rule, ours, (ours - Z95 * se, ours + Z95 * se) if se else None)
+    return Outcome(band_verdict(lo, hi, *band), rule, ours, None if point else (lo, hi), band=band)
+
+
+def proportion_interval(k: int, n: int, method: str = "wilson") -> tuple[float, float]:
+    """95 % interval of a proportion k/n (:func:`scipy.stats.binomtest`; ``method`` ``wilson`` or
+    ``exact`` for Clopper-Pearson)."""
+    if n <= 0:
+        return 0.0, 1.0
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(k), int(n)).proportion_ci(LEVEL, method=method)
+    return float(ci.low), float(ci.high)
 
 
 def wilson(k: int, n: int) -> tuple[float, float]:
-    """95 % Wilson score interval of a proportion k/n."""
-    if n <= 0:
-        return 0.0, 1.0
-    p = k / n
-    den = 1 + Z95 ** 2 / n
-    centre = (p + Z95 ** 2 / (2 * n)) / den
-    half = Z95 * math.sqrt(p * (1 - p) / n + Z95 ** 2 / (4 * n * n)) / den
-    return max(0.0, centre - half), min(1.0, centre + half)
+    """95 % Wilson score interval of k/n."""
+    return proportion_interval(k, n, "wilson")
 
 
-def proportion(k: int, n: int, paper: float, tol: float) -> Outcome:
-    """A rate k/n against the paper's rate ``paper`` with tolerance ``tol`` (absolute)."""
-    lo, hi = wilson(int(k), int(n))
-    rule = (f"95 % Wilson interval of {k}/{n} against the paper's {paper:.1%} ± {tol:.1%}; "
-            f"undecided when the interval is wider than {4 * tol:.1%}")
-    if hi < paper - tol or lo > paper + tol:
-        verdict = DISAGREE
-    elif hi - lo > 4 * tol:
-        verdict = UNDECIDED
-    else:
-        verdict = AGREE
-    return Outcome(verdict, rule, k / n if n else None, (lo, hi), int(n))
+def proportion(k: int, n: int, paper: float, tol: float, method: str = "wilson") -> Outcome:
+    """A rate k/n against the paper's rate ``paper`` ± ``tol`` (absolute): the 95 % interval
+    (:func:`proportion_interval`) against the band (:func:`band_verdict`)."""
+    lo, hi = proportion_interval(int(k), int(n), method)
+    band = (max(0.0, paper - tol), min(1.0, paper + tol))
+    rule = (f"95 % {method} interval of {k}/{n} inside the paper's {paper:.1%} ± {tol:.1%}: agree if "
+            "wholly inside, disagree if wholly outside, undecided otherwise")
+    return Outcome(band_verdict(lo, hi, *band), rule, k / n if n else None, (lo, hi), int(n), band)
 
 
 def holds(value: bool, test: str) -> Outcome:
-    """A qualitative claim decided by a computed test, described in ``test``."""
+    """A qualitative claim decided by a computed, deterministic test, described in ``test``."""
     return Outcome(AGREE if bool(value) else DISAGREE, test, str(bool(value)))
 
 
 def not_reproducible(why: str) -> Outcome:
     return Outcome(NOT_REPRODUCIBLE, why)
+
+
+def expected_false(n_decisions: int, level: float = LEVEL) -> float:
+    """How many of ``n_decisions`` interval decisions at ``level`` are expected to be wrong by
+    chance if every one sat at its rule's error rate: (1 - level) n, an upper estimate (an
+    equivalence or direction decision errs with at most 2.5 % when the truth is at the edge)."""
+    return (1.0 - level) * n_decisions
