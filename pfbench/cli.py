@@ -204,7 +204,8 @@ PARAM_HELP = "Model parameter KEY=VALUE (repeatable; JSON-typed: 3 int, 0.5 floa
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
 @click.option("--dtype", type=click.Choice(DTYPES), default="float64", show_default=True)
 @click.option("--threads", type=int, default=None, callback=positive_int("threads"),
-              help="numba threads for one filter's particle loops (default: all cores; 1: sequential).")
+              help="numba threads for one filter's particle loops (default: the cores not busy with other "
+                   "processes now; 1: sequential).")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help=PARAM_HELP)
 @click.option("--data", type=click.Path(dir_okay=False), default=None,

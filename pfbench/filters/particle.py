@@ -40,7 +40,7 @@ import numpy as np
 from .. import backends
 from ..backends.numpy_backend import BLOCK, block_streams
 from ..errors import InputError
-from ..procs import usable_cores
+from ..procs import free_cores
 from ..resampling import Scheme
 from .inputs import check_backend, check_dtype, ess_count, seed_sequence
 from .methods import Method
@@ -140,7 +140,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     code = int(Method.BOOTSTRAP if method == Method.MULTIPDF else method)  # MultiPDF sub-filters
     scheme = int(Scheme.parse(resampling))
     block = int(block or BLOCK)
-    workers = min(n_groups, n_threads or usable_cores())
+    workers = min(n_groups, n_threads or free_cores())
     pooled = n_groups > 1 and backend == "numba" and workers > 1
     # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
     inner = 1 if (pooled or n_groups > 1) else n_threads

@@ -45,7 +45,8 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     dtype : particle storage precision, ``float64`` or ``float32``.
     seed : int or ``numpy.random.SeedSequence``.
     common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
-    n_threads : numba threads (default None: all cores; 1: sequential). One filter with more than
+    n_threads : numba threads (default None: the cores free now, :func:`pfbench.procs.free_cores`,
+        so a busy machine gets fewer threads instead of a collapse; 1: sequential). One filter with more than
         one stream block (N_p > :data:`pfbench.backends.numpy_backend.BLOCK`) runs its particle
         loops on them; MultiPDF without common random numbers runs its sub-filters in parallel
         instead (each on one thread). Results never depend on it.
