@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from ..errors import InputError
+from ..models.contract import check_model, named_model_errors
 from .inputs import check_inputs
 from .methods import Method
 from .result import FilterResult
@@ -61,31 +62,33 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     n_particles = _count(n_particles, "n_particles")
     n_filters = _count(n_filters, "n_filters")
     y, u = check_inputs(model, y, u)
+    check_model(model, y, u)   # a mistake in the model's code is one line naming it, on every backend
     from ..resources import check_filter_memory  # refuse before allocating what cannot fit
 
     check_filter_memory(model, m.label, n_particles, n_filters=n_filters, n_steps=y.shape[0], dtype=dtype,
                         backend=backend, store_particles=store_particles, flag="n_particles")
-    if m.family == "particle":
-        from .particle import run_particle
+    with named_model_errors(model, y, u, backend):
+        if m.family == "particle":
+            from .particle import run_particle
 
-        return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
-                            resampling=resampling, ess_threshold=ess_threshold, backend=backend,
-                            dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
-                            n_threads=n_threads, store_particles=store_particles, _block=_block)
-    if n_filters != 1:
-        raise InputError(f"n_filters={n_filters} needs method='multipdf'")
-    if store_particles:
-        raise InputError(f"store_particles is available for the particle methods, not {m.label!r}")
-    if m.family == "mpf":
-        from .marginalized import run_mpf
+            return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
+                                resampling=resampling, ess_threshold=ess_threshold, backend=backend,
+                                dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
+                                n_threads=n_threads, store_particles=store_particles, _block=_block)
+        if n_filters != 1:
+            raise InputError(f"n_filters={n_filters} needs method='multipdf'")
+        if store_particles:
+            raise InputError(f"store_particles is available for the particle methods, not {m.label!r}")
+        if m.family == "mpf":
+            from .marginalized import run_mpf
 
-        return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
-                       seed=seed, dtype=dtype, ess_threshold=ess_threshold)
-    if m.family == "kalman":
-        from .marginalized import run_kalman
+            return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
+                           seed=seed, dtype=dtype, ess_threshold=ess_threshold)
+        if m.family == "kalman":
+            from .marginalized import run_kalman
 
-        return run_kalman(model, y, u, backend=backend)
-    from .guided import run_guided
+            return run_kalman(model, y, u, backend=backend)
+        from .guided import run_guided
 
-    return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
-                      ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed)
+        return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
+                          ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed)
