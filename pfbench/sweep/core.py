@@ -154,11 +154,21 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
+    from ..filters.inputs import ARRAY_BACKENDS
+
     m = Method.parse(method)
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
-    out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
-                        n_filters=n_filters, resampling=resampling,
-                        ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
+    if backend in ARRAY_BACKENDS:  # cupy: the array-namespace kernel, its own Philox draws
+        from ..backends.cupy_backend import run_groups as run_array
+        from ..filters.inputs import seed_sequence
+
+        out, _, _ = run_array(model, y, u, seed_sequence(seed), backend=backend, method=m, n_per=n_per,
+                              n_filters=n_filters, resampling=resampling,
+                              ess_threshold=ess_count(None, n_per), dtype="float64")
+    else:
+        out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
+                            n_filters=n_filters, resampling=resampling,
+                            ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
     est = out["est"]
     return est.mean(axis=0), est
 
