@@ -270,15 +270,16 @@ class Fused:
 
     def normals(self, xp, key, n_rows, n, t, n_noise):
         z = xp.empty((n_rows * n, n_noise))
-        self.normals_kernel(int(t), np.uint64(key[0]), np.uint64(key[1]), int(n), np.int32(n_noise), z,
-                            size=n_rows * n)
+        self.normals_kernel(int(t), np.uint64(key[0]), np.uint64(key[1]), int(n), np.int32(n_noise),
+                            z.reshape(-1), size=n_rows * n)
         return z
 
     def model_step(self, xp, fns, p, key, x, yt, ut, t):
         F, n, _ = x.shape
         ll = xp.empty((F, n))
         uu = ut if ut.size else xp.zeros(1)
-        self.model_kernel(float(t), int(t), yt, uu, np.uint64(key[0]), np.uint64(key[1]), int(n), x, ll)
+        self.model_kernel(float(t), int(t), yt, uu, np.uint64(key[0]), np.uint64(key[1]), int(n),
+                          x.reshape(-1), ll.reshape(-1))  # 1-D views: raw x[i * n_x + k]
         return ll
 
     # ----- weighting
