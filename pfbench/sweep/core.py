@@ -84,6 +84,15 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or int(seed) < 0:
         raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
+    from ..filters.inputs import ARRAY_BACKENDS
+
+    if backend in ARRAY_BACKENDS:  # before any work: the methods it runs, and a GPU for cupy
+        from ..backends import array_backend, cupy_backend
+
+        for m, _, _ in out:
+            array_backend.check_supported(Method.parse(m), Scheme.parse(resampling), backend)
+        if backend == "cupy":
+            cupy_backend.import_cupy()
     resampling = Scheme.parse(resampling).label
     spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
             "runs": int(runs), "steps": int(steps), "seed": int(seed), "backend": backend,
