@@ -541,12 +541,14 @@ def report(out_root, strict, as_json, compare):
 @main.command()
 @click.option("--json", "as_json", is_flag=True)
 def info(as_json):
-    """CPU, core count, numba threading layer, package versions, registered models."""
+    """CPU, core count, numba threading layer, package versions, GPU and CuPy, registered models."""
     from . import models
     from .provenance import host_info, numba_threading_layer, package_versions
 
+    from .backends.cupy_backend import gpu_info
+
     data = {"host": host_info(), "numba_threading_layer": numba_threading_layer(),
-            "packages": package_versions(), "models": models.names()}
+            "packages": package_versions(), "gpu": gpu_info(), "models": models.names()}
     if as_json:
         from .io import to_json
 
@@ -557,6 +559,10 @@ def info(as_json):
     click.echo(f"{'numba threading layer':>22}: {data['numba_threading_layer']}")
     for k, v in data["packages"].items():
         click.echo(f"{k:>22}: {v}")
+    g = data["gpu"]
+    click.echo(f"{'cupy':>22}: {g.get('cupy') or 'not installed'}")
+    click.echo(f"{'gpu':>22}: {g.get('gpu')}" + (f" ({g['gpu_memory_bytes'] / 2**30:.0f} GiB, CUDA runtime "
+                                                 f"{g['cuda_runtime']})" if g.get("gpu_memory_bytes") else ""))
     click.echo(f"{'models':>22}: {', '.join(data['models'])}")
 
 

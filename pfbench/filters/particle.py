@@ -42,7 +42,7 @@ from ..backends.numpy_backend import BLOCK, block_streams
 from ..errors import InputError
 from ..procs import free_cores
 from ..resampling import Scheme
-from .inputs import check_backend, check_dtype, ess_count, seed_sequence
+from .inputs import ARRAY_BACKENDS, check_backend, check_dtype, ess_count, seed_sequence
 from .methods import Method
 from .result import FilterResult, mixture_loglik_increments, total_variance
 
@@ -78,16 +78,27 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     if method != Method.SIR and ess_threshold is not None:
         raise InputError(f"ess_threshold applies to method 'sir' only (got method {method.label!r})")
     thr = ess_count(ess_threshold, n_per)
-    rngs = streams(seed, n_filters, common_random_numbers)
-    out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
-                              resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
-                              n_threads=n_threads, store_particles=store_particles, block=_block)
+    extra = {}
+    if backend in ARRAY_BACKENDS:  # the array-namespace kernel: NumPy (xp-numpy) or a GPU (cupy)
+        from ..backends import cupy_backend
+
+        out, elapsed, extra = cupy_backend.run_groups(
+            model, y, u, seed_sequence(seed), backend=backend, method=method, n_per=n_per,
+            n_filters=n_filters, resampling=scheme, ess_threshold=thr, dtype=dtype,
+            store_particles=store_particles)
+        n_streams = 1
+    else:
+        rngs = streams(seed, n_filters, common_random_numbers)
+        out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
+                                  resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
+                                  n_threads=n_threads, store_particles=store_particles, block=_block)
+        n_streams = len(rngs)
     est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
             "resampling": scheme.label, "common_random_numbers": bool(common_random_numbers),
-            "n_streams": len(rngs)}
+            "n_streams": n_streams, **extra}
     if n_per * n_filters != n_particles:
         info["n_particles_requested"] = n_particles
         info["note"] = (f"N_p = {n_particles} does not split evenly into {n_filters} sub-filters: "

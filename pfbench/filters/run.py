@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..models.contract import check_model, named_model_errors
-from .inputs import check_inputs
+from .inputs import ARRAY_BACKENDS, check_inputs
 from .methods import Method
 from .result import FilterResult
 
@@ -42,7 +42,10 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     resampling : a :class:`~pfbench.resampling.Scheme` name.
     ess_threshold : SIR and guided: resample when N_eff < ess_threshold * N_p; a fraction in
         (0, 1], default 0.5 (as in the ``particles`` library).
-    backend : ``numpy`` (reference) or ``numba`` (compiled; first call compiles, then cached).
+    backend : ``numpy`` (reference), ``numba`` (compiled; first call compiles, then cached) or
+        ``cupy`` (bootstrap, SIR, SIS, MultiPDF on a GPU; systematic or stratified resampling; its
+        own counter-based random numbers, see :mod:`pfbench.backends.array_backend`;
+        ``xp-numpy`` runs the same code on NumPy).
     dtype : particle storage precision, ``float64`` or ``float32``.
     seed : int or ``numpy.random.SeedSequence``.
     common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
@@ -77,6 +80,9 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
                                 n_threads=n_threads, store_particles=store_particles, _block=_block)
         if n_filters != 1:
             raise InputError(f"n_filters={n_filters} needs method='multipdf'")
+        if backend in ARRAY_BACKENDS:
+            raise InputError(f"backend {backend!r} runs the particle methods bootstrap, sir, sis and "
+                             f"multipdf, not {m.label!r}")
         if store_particles:
             raise InputError(f"store_particles is available for the particle methods, not {m.label!r}")
         if m.family == "mpf":

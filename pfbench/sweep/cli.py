@@ -71,7 +71,7 @@ _OPTIONS = [
                  help=f"One or a comma-separated list of: {', '.join(METHODS)} (default multipdf)."),
     click.option("--runs", type=int, default=None, help="Monte Carlo runs per configuration."),
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
-    click.option("--backend", default=None, help="numba (default) or numpy."),
+    click.option("--backend", default=None, help="numba (default), numpy or cupy (a GPU)."),
     click.option("--seed", type=int, default=None, help="Root seed, an integer >= 0 (default 0)."),
     click.option("--out", default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl; "
                                              "one sweep at a time may write it."),

@@ -84,6 +84,15 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or int(seed) < 0:
         raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
+    from ..filters.inputs import ARRAY_BACKENDS
+
+    if backend in ARRAY_BACKENDS:  # before any work: the methods it runs, and a GPU for cupy
+        from ..backends import array_backend, cupy_backend
+
+        for m, _, _ in out:
+            array_backend.check_supported(Method.parse(m), Scheme.parse(resampling), backend)
+        if backend == "cupy":
+            cupy_backend.import_cupy()
     resampling = Scheme.parse(resampling).label
     spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
             "runs": int(runs), "steps": int(steps), "seed": int(seed), "backend": backend,
@@ -154,11 +163,21 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
+    from ..filters.inputs import ARRAY_BACKENDS
+
     m = Method.parse(method)
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
-    out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
-                        n_filters=n_filters, resampling=resampling,
-                        ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
+    if backend in ARRAY_BACKENDS:  # cupy: the array-namespace kernel, its own Philox draws
+        from ..backends.cupy_backend import run_groups as run_array
+        from ..filters.inputs import seed_sequence
+
+        out, _, _ = run_array(model, y, u, seed_sequence(seed), backend=backend, method=m, n_per=n_per,
+                              n_filters=n_filters, resampling=resampling,
+                              ess_threshold=ess_count(None, n_per), dtype="float64")
+    else:
+        out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
+                            n_filters=n_filters, resampling=resampling,
+                            ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
     est = out["est"]
     return est.mean(axis=0), est
 
