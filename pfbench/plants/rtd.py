@@ -289,6 +289,69 @@ def envelope_fraction(y_ref, p1, p2, mask=None) -> float:
     return float(inside.mean()) if inside.size else float("nan")
 
 
+def predictor_trace(y, u, rc: DiscreteModel, ratio: float) -> np.ndarray:
+    """The one-step steady-state Kalman predictor of :func:`boundary_layer` for the ratio
+    ``ratio`` = Q/R (a scalar filter's gain depends on Q/R only), as a first-order linear recursion
+    (``scipy.signal.lfilter``): ``x[k+1] = a (1 - M c) x[k] + a M y[k] + b u[k]``, ``M`` the DARE gain.
+    Aligned like :class:`BoundaryLayer` (element k is c x[k|k-1]; element 0 is y[0])."""
+    from scipy.signal import lfilter
+
+    from ..filters.dare import dare_scalar
+
+    y = np.asarray(y, dtype=np.float64).ravel()
+    u = np.asarray(u, dtype=np.float64).ravel()
+    a, b, c = float(rc.A[0, 0]), float(rc.B[0, 0]), float(rc.C[0, 0])
+    if not np.isfinite(ratio) or ratio <= 0:
+        raise InputError(f"predictor_trace: the ratio Q/R must be positive, got {ratio}")
+    P = dare_scalar(a, c, float(ratio) * b * b, 1.0)
+    M = P * c / (c * c * P + 1.0)
+    alpha = a * (1.0 - M * c)
+    x0 = y[0] / c
+    z = lfilter([1.0], [1.0, -alpha], a * M * y + b * u, zi=[alpha * x0])[0]
+    return c * np.concatenate([[x0], z[:-1]])
+
+
+#: Q/R ratios the calibration of the two predictors chooses from (log grid, 10^-4 .. 10^6)
+CALIBRATION_RATIOS = tuple(float(v) for v in np.logspace(-4, 6, 21))
+
+
+@dataclass
+class Calibration:
+    """The two predictors' Q/R ratios chosen by :func:`calibrate_predictors`."""
+
+    ratio_a: float      # the larger Q/R (follows the readings)
+    ratio_b: float      # the smaller Q/R (follows the RC model)
+    fraction: float     # fraction of the calibration samples inside the layer
+    width: float        # mean width of the layer over those samples
+
+
+def calibrate_predictors(y, u, rc: DiscreteModel, y_ref, mask, ratios=CALIBRATION_RATIOS) -> Calibration:
+    """Calibrate the two predictors first ([RTD] §8: "the system needs to be calibrated first in
+    order to have the two Kalman filters enveloping the required solution"; §6, Fig. 6: two filters
+    "with different Q and R to calibrate the desired response"): over every pair of ``ratios``
+    (Q/R of predictor A > that of predictor B), the pair whose layer holds ``y_ref`` for the largest
+    fraction of the ``mask`` samples, the narrowest layer among equals (so the calibration does not
+    simply take the two extremes)."""
+    mask = np.asarray(mask, dtype=bool)
+    if mask.sum() < 2:
+        raise InputError("calibrate_predictors: fewer than 2 calibration samples")
+    ratios = sorted(float(r) for r in ratios)
+    if len(ratios) < 2:
+        raise InputError("calibrate_predictors: need at least two Q/R ratios")
+    ref = np.asarray(y_ref, dtype=np.float64).ravel()[mask]
+    tr = [predictor_trace(y, u, rc, r)[mask] for r in ratios]
+    best = None
+    for i in range(len(ratios)):
+        for j in range(i):
+            lo, hi = np.minimum(tr[i], tr[j]), np.maximum(tr[i], tr[j])
+            frac = float(np.mean((ref >= lo) & (ref <= hi)))
+            width = float(np.mean(hi - lo))
+            key = (-frac, width)
+            if best is None or key < best[0]:
+                best = (key, Calibration(ratios[i], ratios[j], frac, width))
+    return best[1]
+
+
 # ----------------------------------------------------------------------------- data logs
 
 def load_log(path) -> dict:
