@@ -226,6 +226,40 @@ def simulate_fig5(n: int = 600, Qu: float = 2.3, R: float = 1.0, u: float = U_ST
             "errcov": ex["errcov"][:, 0, 0], "gain": ex["gains"][:, 0, 0], "model": m, "Qx": Qx}
 
 
+def fig5_runs(n: int = 600, Qu: float = 2.3, R: float = 1.0, seeds=(0,), u: float = U_STEP,
+              model: DiscreteModel | None = None) -> dict:
+    """:func:`simulate_fig5` for many seeds at once (same noise draws per seed, so each row equals
+    that seed's run): the filter's gains do not depend on the data, so they are computed once and
+    the runs advance together. Returns t, y_true (runs, n), yest (runs, n) and errcov (n,)."""
+    m = identified_model() if model is None else model
+    seeds = list(seeds)
+    W, V = np.empty((len(seeds), n)), np.empty((len(seeds), n))
+    for i, s in enumerate(seeds):
+        rng = np.random.default_rng(s)
+        W[i] = np.sqrt(Qu) * rng.standard_normal(n)
+        V[i] = np.sqrt(R) * rng.standard_normal(n)
+    A, b, c = m.A, m.B[:, 0], m.C[0]
+    Qx = Qu * (m.B @ m.B.T)
+    P = Qx.copy()                                   # the chapter's Ptv = B*Q*B'
+    gains, errcov = np.empty((n, A.shape[0])), np.empty(n)
+    for k in range(n):
+        Mk = P @ c / (c @ P @ c + R)
+        P = P - np.outer(Mk, c @ P)
+        P = 0.5 * (P + P.T)
+        gains[k], errcov[k] = Mk, c @ P @ c
+        P = A @ P @ A.T + Qx
+        P = 0.5 * (P + P.T)
+    x = np.zeros((len(seeds), A.shape[0])); xh = np.zeros_like(x)
+    y_true, yest = np.empty((len(seeds), n)), np.empty((len(seeds), n))
+    for k in range(n):
+        y_true[:, k] = x @ c
+        x = x @ A.T + np.outer(u + W[:, k], b)
+        xh = xh + np.outer(y_true[:, k] + V[:, k] - xh @ c, gains[k])
+        yest[:, k] = xh @ c
+        xh = xh @ A.T + u * b
+    return {"t": np.arange(n) * m.Ts, "y_true": y_true, "yest": yest, "errcov": errcov}
+
+
 def bath_profile(T_low: float = 25.0, T_high: float = 38.0, t_hold: float = 60.0, Ts: float = TS):
     """Thermal-bath input: T_low for 5 s, step up to T_high for t_hold, step down to T_low for t_hold."""
     n0, n1 = int(round(5.0 / Ts)), int(round(t_hold / Ts))
