@@ -345,6 +345,28 @@ def predictor_trace(y, u, rc: DiscreteModel, ratio: float) -> np.ndarray:
     return c * np.concatenate([[x0], z[:-1]])
 
 
+def kf_trace(y, u, rc: DiscreteModel, ratio: float) -> np.ndarray:
+    """The time-varying KF estimate C x[n|n] of :func:`boundary_layer` (Q = ratio R through B,
+    P0 = B Q B as the chapter's code) as a scalar loop: the first-order filter's gain depends on Q/R
+    only, so R = 1."""
+    y = np.asarray(y, dtype=np.float64).ravel()
+    u = np.asarray(u, dtype=np.float64).ravel()
+    a, b, c = float(rc.A[0, 0]), float(rc.B[0, 0]), float(rc.C[0, 0])
+    if not np.isfinite(ratio) or ratio <= 0:
+        raise InputError(f"kf_trace: the ratio Q/R must be positive, got {ratio}")
+    q = float(ratio) * b * b
+    x, P = y[0] / c, q
+    out = np.empty(y.size)
+    for k in range(y.size):
+        M = P * c / (c * c * P + 1.0)
+        x = x + M * (y[k] - c * x)
+        P = (1.0 - M * c) * P
+        out[k] = c * x
+        x = a * x + b * u[k]
+        P = a * a * P + q
+    return out
+
+
 #: Q/R ratios the calibration of the two predictors chooses from (log grid, 10^-4 .. 10^6)
 CALIBRATION_RATIOS = tuple(float(v) for v in np.logspace(-4, 6, 21))
 
