@@ -15,7 +15,7 @@ echo "== GPU"
 nvidia-smi -L || echo "nvidia-smi failed"
 $PY -c "import cupy, numpy; print('cupy', cupy.__version__, 'numpy', numpy.__version__)" || echo "no cupy"
 echo "== GPU tests ($(( $(date +%s) - t0 )) s)"
-timeout 170 $PY -m pytest -q -p no:cacheprovider tests/backends/test_array_backend.py 2>&1 | tail -25
+timeout 170 $PY -m pytest -q -p no:cacheprovider --tb=line tests/backends/test_array_backend.py 2>&1 | tail -15
 echo "== pfbench run --backend cupy ($(( $(date +%s) - t0 )) s)"
 timeout 60 $PY -m pfbench.cli run --model ob1 --backend cupy --particles 1000000 --steps 100 --json
 echo

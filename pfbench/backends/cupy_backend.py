@@ -295,7 +295,7 @@ class Fused:
         wb = bs[:, :, 0]
         incl = xp.cumsum(wb, axis=1)
         offs = xp.concatenate([xp.zeros((F, 1)), incl[:, :-1]], axis=1)
-        total = incl[:, -1]
+        total = xp.ascontiguousarray(incl[:, -1])   # the kernels index total[f]: a strided view would not do
         sums = bs[:, :, 1:].sum(axis=1)
         d = sums[:, 1::2] / total[:, None]
         mean = x[:, 0, :].astype(xp.float64) + d
