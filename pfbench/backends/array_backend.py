@@ -119,7 +119,11 @@ def normals(xp, key, n_rows: int, n: int, t: int, n_noise: int) -> "np.ndarray":
 
 def uniforms(xp, key, n_rows: int, n: int, t: int):
     """(n_rows, n) float64 uniforms in [0, 1) of step ``t``: word 0 of Philox(i, t, UNIFORM, f)
-    (systematic uses column 0 only, stratified all)."""
+    (systematic uses column 0 only, stratified all). A few words (systematic's one per row) are
+    computed on the host and copied: on a GPU the dozen tiny kernels of the Philox rounds cost more
+    than the copy (the same words: NumPy and CuPy compute Philox alike)."""
+    if xp is not np and n_rows * n <= SMALL:
+        return xp.asarray(uniforms(np, key, n_rows, n, t))
     i = xp.arange(n, dtype=xp.uint64)[None, :]
     f = xp.arange(n_rows, dtype=xp.uint64)[:, None]
     return unit(xp, philox4x64(xp, i, t, UNIFORM, f, key)[0])
@@ -163,12 +167,26 @@ def shifted(xp, ll, lw):
     """(a, m, degenerate): the log-weights a = lw + ll (lw None: ll), their max per row, and the
     rows whose every likelihood is zero, where a is lw instead (the weights are kept)."""
     a = ll if lw is None else lw + ll
-    m = a.max(axis=1)
+    m = row_max(xp, a)
     degen = ~(m > -xp.inf)
     if bool(degen.any()):
         a = xp.where(degen[:, None], xp.zeros_like(ll) if lw is None else lw, a)
-        m = a.max(axis=1)
+        m = row_max(xp, a)
     return a, m, degen
+
+
+#: at most this many rows are reduced one by one (:func:`row_max`), at most this many words are
+#: drawn on the host (:func:`uniforms`)
+SMALL = 64
+
+
+def row_max(xp, a):
+    """The max of each row of a (F, n) array. For a few long rows on a GPU, row by row: CuPy
+    reduces ``axis=1`` of one 10^8-long row in one thread block (39 ms measured on an H100)
+    against 0.3 ms for the whole-array reduction."""
+    if xp is np or a.shape[0] > SMALL:
+        return a.max(axis=1)
+    return xp.stack([a[f].max() for f in range(a.shape[0])])
 
 
 def ancestors(xp, cdf, u, f: int):
