@@ -147,7 +147,7 @@ def claims(ctx, fig_name, summ, paper_claim: str):
 
 #: the band the figures draw and what it is ([MultiPDF] §5: "standard deviations with 95 %
 #: probability in both directions from the mean", sigma / sqrt(m) of m runs)
-BAND_TEXT = "95 % interval of the mean over {runs} runs: mean ± 2 s/√runs ([MultiPDF] §5)"
+BAND_TEXT = "shaded (each line's colour): 95 % interval of the mean over {runs} runs, mean ± 2 s/√runs ([MultiPDF] §5)"
 _MARK = {"mpf": "s", "bootstrap": "^"}
 
 
