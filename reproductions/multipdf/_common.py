@@ -245,6 +245,12 @@ def best_set_rule(wide, in_set, all_nf):
 
 # ----- sentences about many cases, and the lost Ob5 noise levels -----------------------------------
 
+def interval_text(o) -> str:
+    """An outcome's verdict with its 95 % interval, for a comparison row's note."""
+    iv = "no interval" if o.interval is None else f"95 % interval [{o.interval[0]:.3g}, {o.interval[1]:.3g}]"
+    return f"{o.verdict}, {iv}"
+
+
 def cases_rule(outcomes, share: float, what: str, why: str) -> Outcome:
     """One sentence about many cases (objects, versions, N_f values): the cases' own outcomes
     (95 % interval rules of :mod:`pfbench.verdicts`) decide it.

@@ -10,7 +10,7 @@ from pfbench.models import get
 from pfbench.recipes import recipe
 from pfbench.verdicts import CONSTRUCTION, Reading, close_to, direction, holds
 
-from ._common import ESTIMATE, cases_rule, filter_kw
+from ._common import ESTIMATE, cases_rule, filter_kw, interval_text
 
 #: the band of the 85.46 % claim: the paper prints one run of M = 100000 steps, whose own sampling
 #: error is 0.1-0.2 point (our batch-means standard errors at M = 20000, 0.13-0.35 point for
@@ -84,7 +84,7 @@ def table6(ctx):
              f"std d_{k} - std d_MultiPDF") for k in subs]
     for o, q in means + stds:
         ctx.compare(f"table6: {q} (per batch of {BATCH} steps)", ours=o.ours,
-                    note=f"{o.verdict}, 95 % interval [{o.interval[0]:.3g}, {o.interval[1]:.3g}]")
+                    note=interval_text(o))
     ctx.claim("As one can see in Table 6, the results from parallel filters provided higher mean values and "
               "standard deviations than from single ones, but statistics for estimate from MultiPDF PF are "
               "noticeably smaller", where,

@@ -7,7 +7,7 @@ from pfbench.recipes import recipe
 
 from pfbench.verdicts import direction
 
-from ._common import OPTIONS, cases_rule, per_run, sweep
+from ._common import OPTIONS, cases_rule, interval_text, per_run, sweep
 
 OBJECTS = [("Ob2", "ob2", {}), ("Ob3 v1", "ob3", {"version": 1}), ("Ob3 v2", "ob3", {"version": 2}),
            ("Ob3 v3", "ob3", {"version": 3}), ("Ob3 v4", "ob3", {"version": 4}),
@@ -59,8 +59,7 @@ def table4(ctx):
             q = f"{r['object']}: aRMSE(MPF) - aRMSE(worst MultiPDF/BF: N_p={ref[1]}, N_f={ref[2]})"
             worse.append((o, q))
             ctx.compare(f"table4: {q}", ours=o.ours,
-                        note=f"one case of the 'other objects' sentence: {o.verdict}, 95 % interval "
-                             f"[{o.interval[0]:.3g}, {o.interval[1]:.3g}]" if o.interval else o.verdict)
+                        note=f"one case of the 'other objects' sentence: {interval_text(o)}")
     ctx.claim("For other objects, the MPF result is worse than the worst results from MultiPDF PF (higher "
               "aRMSE values than all values visible in the graphs)", "[MultiPDF] §7, Table 4",
               "per object (Ob2, Ob3 v2-v5): aRMSE(MPF) - aRMSE(worst MultiPDF/BF configuration), paired "
