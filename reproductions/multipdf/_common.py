@@ -276,7 +276,8 @@ def cases_rule(outcomes, share: float, what: str, why: str) -> Outcome:
     rule = (f"{what}: {a} of {n} cases agree and {x} disagree by their own 95 % interval, so the share "
             f"of cases where it holds is in [{lo:.3g}, {hi:.3g}]; the sentence needs >= {share:.3g} "
             f"({why}): agree if that whole range does, disagree if none of it does, undecided otherwise")
-    return Outcome(band_verdict(lo, hi, share, 1.0), rule, a / n, (lo, hi), n, (share, 1.0))
+    # n stays None: it counts cases, not runs (the scorecard reads n as runs)
+    return Outcome(band_verdict(lo, hi, share, 1.0), rule, a / n, (lo, hi), None, (share, 1.0))
 
 
 def over_noise_levels(by_level):

@@ -334,9 +334,10 @@ def _make(name, model, params, particles, filters, rq, rf, claim, title):
                      "its 6.29 s per PF run with 1500 particles (C#) implies M = 4200-21000 for "
                      "0.2-1 us per particle-step, so --full uses M = 10000 (quick mode 1000). "
                      "Table 3's noise levels were lost: the measurement noise std (1e-4 m, 1e-2 N) "
-                     f"is swept by factors {levels} (claims per level, tagged 'r x s'); the plot and "
-                     "the N_f summary show the first factor, our original reading, because no source "
-                     "value replaces it. x_d, the reference and the prior are our choices; the truth "
+                     f"is swept by factors {levels}: each Ob5 sentence is scored only when every factor "
+                     "gives the same verdict (else not reproducible), the factors shown as sensitivity "
+                     "rows; the plot and the N_f summary show the first factor, our original reading, "
+                     "because no source value replaces it. x_d, the reference and the prior are our choices; the truth "
                      "runs in closed loop with a PD controller (pfbench/models/ob5.py). aRMSE mixes "
                      "units (m, m/s, A) and is dominated by the velocity x2 and the coil currents.")
         ctx.note(f"{name}: grid N_p = {list(particles)}, N_f = {list(filters)}, M = {steps} steps, "
