@@ -1,6 +1,7 @@
 """Shared helpers of the multipdf recipes: run a sweep into a resumable store and summarise."""
 from __future__ import annotations
 
+import inspect
 import time
 
 import numpy as np
@@ -8,7 +9,34 @@ import numpy as np
 from pfbench.sweep import make_spec, run_sweep, summarize_frame
 from pfbench.procs import usable_cores
 from pfbench.errors import PfbenchError
-from pfbench.sweep.store import Store, journal_path
+from pfbench.sweep.store import Store, journal_path, spec_hash
+from pfbench.verdicts import AGREE, DISAGREE, NOT_REPRODUCIBLE, Outcome, Reading, band_verdict
+
+#: Where each (sub-)filter takes its point estimate. [MultiPDF] Alg. 1 step 6 and Alg. 2 step 2e
+#: compute it AFTER the resampling step ("post": the plain mean of the resampled particles);
+#: pfbench's filters today take the weighted mean before resampling ("pre"). The two differ by the
+#: resampling noise only (same expectation). ``run_filter``'s ``estimate="pre"|"post"`` option is
+#: being added in the framework; until it exists this must stay "pre" (today's behaviour). Once it
+#: exists, switching every multipdf recipe to the paper's algorithm is this one line: "post".
+ESTIMATE = "pre"
+
+
+def estimate_kw(*funcs) -> tuple:
+    """(func, {"estimate": ESTIMATE}) for the first of ``funcs`` that takes an ``estimate`` keyword,
+    else (None, {}) - allowed only while :data:`ESTIMATE` is "pre", the framework's behaviour
+    without the option (a RuntimeError otherwise, so a switch to "post" cannot pass silently)."""
+    for f in funcs:
+        if "estimate" in inspect.signature(f).parameters:
+            return f, {"estimate": ESTIMATE}
+    if ESTIMATE != "pre":
+        raise RuntimeError(f"ESTIMATE = {ESTIMATE!r} needs pfbench's estimate= option, which "
+                           f"{', '.join(f.__name__ for f in funcs)} do not take yet")
+    return None, {}
+
+
+def filter_kw(run_filter) -> dict:
+    """Keyword arguments for ``pfbench.run_filter`` that select :data:`ESTIMATE`."""
+    return estimate_kw(run_filter)[1]
 
 
 #: the --option keys that :func:`sweep` and its helpers read (declare them on every recipe using it)
@@ -20,6 +48,41 @@ def workers(ctx) -> int:
     return ctx.option("workers", usable_cores(), int)
 
 
+def sweep_spec(ctx, name: str, model: str, *, params=None, particles, filters, runs_quick: int,
+               runs_full: int, steps: int = 100, extra_configs=()):
+    """(spec, store path, extra run_sweep keywords) of the sweep :func:`sweep` runs."""
+    runs = ctx.option("runs", runs_full if ctx.full else runs_quick, int)
+    configs = [("multipdf", p, f) for p in particles for f in filters if f <= p]
+    configs += list(extra_configs)
+    where, est = estimate_kw(make_spec, run_sweep)
+    spec = make_spec(model, params=params or {}, configs=configs, runs=runs, steps=steps,
+                     seed=ctx.seed, backend=ctx.backend, **(est if where is make_spec else {}))
+    out = ctx.out_dir / "sweeps" / f"{name}-{'full' if ctx.full else 'quick'}.jsonl"
+    return spec, out, (est if where is run_sweep else {})
+
+
+def reuse_or_sweep(ctx, name: str, model: str, **kw):
+    """Per-run frame (:func:`per_run`) of the sweep that recipe ``name`` runs, for a sentence of the
+    paper that spans several figures and is scored by this recipe only.
+
+    The sweeps are deterministic (the spec holds seed, runs, grid and a fingerprint of the code), so
+    when recipe ``name``'s store in --out has exactly this spec and is complete it is read as it is
+    (and not listed as an output of this recipe); otherwise this recipe runs the same spec into its
+    own store ``<this recipe>_<name>`` (same numbers, more time).
+    """
+    spec, out, _ = sweep_spec(ctx, name, model, **kw)
+    try:
+        if journal_path(out).exists():
+            st = Store.read(out)
+            if spec_hash(st.spec) == spec_hash(spec) and st.complete:
+                ctx.extra.setdefault("sweeps_read", []).append(out.name)
+                return per_run(st)
+    except PfbenchError:
+        pass
+    _s, _spec, _w, st = sweep(ctx, f"{ctx.recipe.name}_{name}", model, **kw)
+    return per_run(st)
+
+
 def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_quick: int,
           runs_full: int, steps: int = 100, extra_configs=()):
     """Run the (resumable) sweep of a recipe; returns (summary frame, spec, wall seconds).
@@ -27,12 +90,10 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
     The store is results/multipdf/sweeps/<name>-<quick|full>.jsonl: an interrupted recipe
     resumes; a store written by other code or another grid is replaced.
     """
-    runs = ctx.option("runs", runs_full if ctx.full else runs_quick, int)
-    configs = [("multipdf", p, f) for p in particles for f in filters if f <= p]
-    configs += list(extra_configs)
-    spec = make_spec(model, params=params or {}, configs=configs, runs=runs, steps=steps,
-                     seed=ctx.seed, backend=ctx.backend)
-    out = ctx.out_dir / "sweeps" / f"{name}-{'full' if ctx.full else 'quick'}.jsonl"
+    spec, out, kw = sweep_spec(ctx, name, model, params=params, particles=particles, filters=filters,
+                               runs_quick=runs_quick, runs_full=runs_full, steps=steps,
+                               extra_configs=extra_configs)
+    runs = spec["runs"]
     overwrite = False
     if journal_path(out).exists():
         try:
@@ -41,7 +102,7 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
         except PfbenchError:
             overwrite = True
     t0 = time.perf_counter()
-    rep = run_sweep(spec, out, workers=workers(ctx), progress=not ctx.quiet, overwrite=overwrite)
+    rep = run_sweep(spec, out, workers=workers(ctx), progress=not ctx.quiet, overwrite=overwrite, **kw)
     wall = time.perf_counter() - t0
     st = Store.read(out)
     frame = st.frame()
@@ -84,10 +145,36 @@ def claims(ctx, fig_name, summ, paper_claim: str):
     return tab, best_avg, mean_rel
 
 
-def plot(ctx, name, summ, title):
-    from pfbench.sweep import plot_summary
+#: the band the figures draw and what it is ([MultiPDF] §5: "standard deviations with 95 %
+#: probability in both directions from the mean", sigma / sqrt(m) of m runs)
+BAND_TEXT = "shaded (each line's colour): 95 % interval of the mean over {runs} runs, mean ± 2 s/√runs ([MultiPDF] §5)"
+_MARK = {"mpf": "s", "bootstrap": "^"}
 
-    fig = plot_summary(summ, title)
+
+def plot(ctx, name, summ, title, yunit="state units"):
+    """aRMSE vs N_p, one line per N_f (N_f = 1 is the bootstrap filter) and one per other method,
+    each with its band (:data:`BAND_TEXT`), in the shared style (:mod:`pfbench.plotting`). The
+    paper's figure values were lost in the extraction, so no paper curve can be drawn beside ours."""
+    from pfbench import plotting
+
+    fig, ax = plotting.subplots(figsize=(6.4, 4.2))
+    runs = int(summ["runs"].max())
+    first = True
+    for (m, n_f), g in sorted(summ.groupby(["method", "n_filters"]), key=lambda t: (t[0][0] != "multipdf", t[0])):
+        g = g.sort_values("n_particles")
+        x = g["n_particles"].to_numpy()
+        lab = f"MultiPDF, N_f = {n_f}" + (" (bootstrap PF)" if n_f == 1 else "") if m == "multipdf" \
+            else {"mpf": "marginalized PF (MPF)"}.get(m, m)
+        line, = ax.plot(x, g["armse_mean"], marker=_MARK.get(m, "o"), ms=3, label=lab,
+                        ls="--" if m != "multipdf" else "-")
+        lo, hi = g["armse_lo"].to_numpy(), g["armse_hi"].to_numpy()
+        if np.isfinite(lo).all():
+            plotting.band(ax, x, lo, hi, BAND_TEXT.format(runs=runs) if first else "_nolegend_",
+                          color=line.get_color())
+            first = False
+    ax.set_xscale("log")
+    plotting.label(ax, "N_p, total number of particles [-]", f"aRMSE, eq. 11 [{yunit}]", title)
+    ax.legend(fontsize=7)
     ctx.write_figure(name, fig)
 
 
@@ -102,7 +189,7 @@ def significance(summ, nf_a, nf_b):
     return hits / max(1, len(nps))
 
 
-__all__ = ["OPTIONS", "sweep", "claims", "plot", "nf_table", "full_time_estimate", "significance", "np"]
+__all__ = ["OPTIONS", "ESTIMATE", "sweep", "claims", "plot", "nf_table", "full_time_estimate", "significance", "np"]
 
 
 # ----- per-run data and the claims' rules ------------------------------------------------------
@@ -154,3 +241,61 @@ def best_set_rule(wide, in_set, all_nf):
     b_in = min(inside, key=means.get)
     b_out = min(outside, key=means.get)
     return (by_nf[b_out] - by_nf[b_in]).to_numpy(), b_in, b_out, argmin
+
+
+# ----- sentences about many cases, and the lost Ob5 noise levels -----------------------------------
+
+def interval_text(o) -> str:
+    """An outcome's verdict with its 95 % interval, for a comparison row's note."""
+    iv = "no interval" if o.interval is None else f"95 % interval [{o.interval[0]:.3g}, {o.interval[1]:.3g}]"
+    return f"{o.verdict}, {iv}"
+
+
+def cases_rule(outcomes, share: float, what: str, why: str) -> Outcome:
+    """One sentence about many cases (objects, versions, N_f values): the cases' own outcomes
+    (95 % interval rules of :mod:`pfbench.verdicts`) decide it.
+
+    With a of n cases agreeing and x disagreeing, the share of cases in which the statement holds is
+    at least a/n and at most (n - x)/n; the sentence agrees when that whole range lies in
+    [``share``, 1], disagrees when it lies wholly below ``share``, and is undecided otherwise
+    (:func:`pfbench.verdicts.band_verdict`). ``share`` = 1 ("for each"): agree only when every case
+    agrees (an intersection-union test, valid at 95 % without correction), disagree when one case
+    disagrees. ``why``: the reason for ``share``. A case that is not reproducible makes the
+    sentence not reproducible.
+    """
+    outcomes = list(outcomes)
+    n = len(outcomes)
+    if n == 0:
+        raise ValueError("cases_rule needs at least one case")
+    nr = [o for o in outcomes if o.verdict == NOT_REPRODUCIBLE]
+    if nr:
+        return Outcome(NOT_REPRODUCIBLE, f"{len(nr)} of {n} cases not reproducible: {nr[0].rule}")
+    a = sum(o.verdict == AGREE for o in outcomes)
+    x = sum(o.verdict == DISAGREE for o in outcomes)
+    lo, hi = a / n, (n - x) / n
+    rule = (f"{what}: {a} of {n} cases agree and {x} disagree by their own 95 % interval, so the share "
+            f"of cases where it holds is in [{lo:.3g}, {hi:.3g}]; the sentence needs >= {share:.3g} "
+            f"({why}): agree if that whole range does, disagree if none of it does, undecided otherwise")
+    # n stays None: it counts cases, not runs (the scorecard reads n as runs)
+    return Outcome(band_verdict(lo, hi, share, 1.0), rule, a / n, (lo, hi), None, (share, 1.0))
+
+
+def over_noise_levels(by_level):
+    """Ob5's noise levels were lost ([MultiPDF] Table 3): ``by_level`` is [(factor, Outcome)] for
+    the swept measurement-noise factors, the first one our primary reading. Returns (outcome,
+    reading, others) for :meth:`~pfbench.recipes.RecipeContext.claim`: the first level's outcome
+    when every level gives the same verdict (the guess does not decide it; said in ``reading``),
+    else not reproducible with every level as a sensitivity row."""
+    (s0, o0), rest = by_level[0], by_level[1:]
+    others = [Reading(f"measurement noise std x {s:g}", f"noise x {s:g}", o) for s, o in rest]
+    levels = ", ".join(f"x {s:g}" for s, _ in by_level)
+    if all(o.verdict == o0.verdict for _, o in rest):
+        reading = (f"measurement noise std x {s0:g} (our value; [MultiPDF] Table 3 lost) - primary "
+                   f"because every swept level ({levels}) gives the same verdict, so the guessed "
+                   "noise level does not decide it")
+        return o0, reading, others
+    verdicts = ", ".join(f"x {s:g}: {o.verdict}" for s, o in by_level)
+    out = Outcome(NOT_REPRODUCIBLE, "decided by Ob5's noise level, which [MultiPDF] Table 3 gave and the "
+                  f"extraction lost: the verdict changes with the swept level ({verdicts})")
+    reading = "the paper's noise level (lost) - primary because it is the sentence's own setting"
+    return out, reading, [Reading(f"measurement noise std x {s0:g}", f"noise x {s0:g}", o0)] + others

@@ -7,7 +7,7 @@ from pfbench.recipes import recipe
 
 from pfbench.verdicts import direction
 
-from ._common import OPTIONS, per_run, sweep
+from ._common import OPTIONS, cases_rule, interval_text, per_run, sweep
 
 OBJECTS = [("Ob2", "ob2", {}), ("Ob3 v1", "ob3", {"version": 1}), ("Ob3 v2", "ob3", {"version": 2}),
            ("Ob3 v3", "ob3", {"version": 3}), ("Ob3 v4", "ob3", {"version": 4}),
@@ -37,6 +37,7 @@ def table4(ctx):
                      "runs": spec["runs"]})
     df = pd.DataFrame(rows)
     ctx.write_table("table4", df)
+    worse = []
     for r in rows:
         ctx.compare(f"table4: {r['object']} MPF aRMSE", ours=r["mpf_armse"],
                     note=f"MultiPDF/BF range {r['multipdf_best']:.3f}-{r['multipdf_worst']:.3f}")
@@ -46,17 +47,28 @@ def table4(ctx):
         if r["object"] == "Ob3 v1":
             # "smaller than most of the values": below the median-ranked MultiPDF/BF configuration
             ref = pf_cols[len(pf_cols) // 2]
-            ctx.claim("the estimation quality was improved only for Ob3 in version (v1) ... the quality "
-                      "index in Table 4 is smaller than most of the values presented in Fig. 5",
-                      "[MultiPDF] §7, Table 4", f"Ob3 v1: aRMSE(MPF) - aRMSE(MultiPDF N_p={ref[1]}, "
-                      f"N_f={ref[2]}, the median-ranked of {len(pf_cols)} configurations)",
-                      direction((mpf - wide[ref]).to_numpy(), -1, "aRMSE difference"), paper="< 0")
+            ctx.claim("the estimation quality was improved only for Ob3 in version (v1) ... Only for this "
+                      "plant, the quality index in Table 4 is smaller than most of the values presented in "
+                      "the corresponding Fig. 5", "[MultiPDF] §7, Table 4", f"Ob3 v1: aRMSE(MPF) - "
+                      f"aRMSE(MultiPDF N_p={ref[1]}, N_f={ref[2]}, the median-ranked of {len(pf_cols)} "
+                      "configurations)", direction((mpf - wide[ref]).to_numpy(), -1, "aRMSE difference"),
+                      paper="< 0")
         else:
             ref = pf_cols[-1]  # the worst MultiPDF/BF configuration by mean aRMSE
-            ctx.claim("For other objects, the MPF result is worse than the worst results from MultiPDF "
-                      "PF", "[MultiPDF] §7, Table 4", f"{r['object']}: aRMSE(MPF) - aRMSE(worst "
-                      f"MultiPDF/BF: N_p={ref[1]}, N_f={ref[2]})",
-                      direction((mpf - wide[ref]).to_numpy(), +1, "aRMSE difference"), paper="> 0")
+            o = direction((mpf - wide[ref]).to_numpy(), +1, "aRMSE difference")
+            q = f"{r['object']}: aRMSE(MPF) - aRMSE(worst MultiPDF/BF: N_p={ref[1]}, N_f={ref[2]})"
+            worse.append((o, q))
+            ctx.compare(f"table4: {q}", ours=o.ours,
+                        note=f"one case of the 'other objects' sentence: {interval_text(o)}")
+    ctx.claim("For other objects, the MPF result is worse than the worst results from MultiPDF PF (higher "
+              "aRMSE values than all values visible in the graphs)", "[MultiPDF] §7, Table 4",
+              "per object (Ob2, Ob3 v2-v5): aRMSE(MPF) - aRMSE(worst MultiPDF/BF configuration), paired "
+              "per run", cases_rule([o for o, _ in worse], 1.0, "MPF worse than the worst MultiPDF/BF",
+                                    "every other object of Table 4"),
+              paper="> 0 for each other object",
+              note="our worst configuration is at N_p = 100, the smallest of our reference grid; the "
+                   "paper's graphs may reach smaller N_p (larger aRMSE), which would make the sentence "
+                   "harder to meet")
     ctx.note("table4: the numeric Table 4 values were lost in the text extraction; only the claim "
              "'MPF improves only on Ob3 v1, elsewhere worse than the worst MultiPDF result' is "
              "tested (as claims). With every state linear in the transition the MPF is an EKF (one copy, "

@@ -8,11 +8,16 @@ import pytest
 
 from pfbench import recipes
 from pfbench.errors import InputError
-from pfbench.verdicts import VERDICTS
+from pfbench import verdicts
+from pfbench.verdicts import CONSTRUCTION, FINDING, VERDICTS
 
 TINY = {"runs": 2, "workers": 1, "steps": 300, "repeats": 1, "r_scale": "1"}
 IDS = ["fig3", "fig4", "fig5", "fig6", "fig7", "fig8", "fig9", "fig10", "fig11", "table3", "table4",
        "table6", "table7", "fig12", "fig13"]
+#: the sentences each recipe scores (one finding per sentence; a sentence that spans several figures
+#: is scored by one recipe only, the others show their cases as comparison rows)
+FINDINGS = {"fig3": 1, "fig4": 1, "fig5": 0, "fig6": 0, "fig7": 1, "fig8": 2, "fig9": 3, "fig10": 0,
+            "fig11": 4, "table3": 0, "table4": 2, "table6": 2, "table7": 2, "fig12": 0, "fig13": 5}
 
 
 @pytest.fixture(scope="module")
@@ -28,13 +33,16 @@ def test_recipe_tiny(name, out_root):
     prov = json.loads((out_root / "multipdf" / f"{name}.json").read_text())
     assert prov["recipe"] == f"multipdf:{name}"
     assert ctx.comparisons, "every recipe states the paper's claim next to ours"
-    if name == "table3":   # parameter rows: comparisons, not scorecard claims
-        assert not ctx.claims and ctx.comparisons
-        return
-    assert ctx.claims, "every recipe records the paper's claims it tests"
+    findings = [c for c in ctx.claims if c["kind"] == FINDING]
+    assert len(findings) == FINDINGS[name], [c["claim"] for c in findings]
     for c in ctx.claims:
         assert c["verdict"] in VERDICTS and c["rule"], c
         assert c["where"].startswith("[MultiPDF]"), c
+        if c["sensitivity"]:
+            assert "primary" in c["reading"], c   # the primary reading says why it is primary
+    if name == "table3":   # parameter rows: comparisons, not scorecard claims
+        assert not ctx.claims
+        return
     csv = out_root / "multipdf" / f"{name}.csv"
     assert csv.is_file()
     df = pd.read_csv(csv)
@@ -46,19 +54,50 @@ def test_recipe_tiny(name, out_root):
     if name == "table7":
         pct = df.set_index("event")["percent"]
         assert pct["d_MultiPDF < max(d_PF[1..3])"] >= pct["d_MultiPDF < min(d_PF[1..3])"]
+        [c] = [c for c in ctx.claims if c["claim"].startswith("almost always")]
+        assert c["kind"] == CONSTRUCTION and "triangle inequality" in c["note"]
+    if name in ("fig11", "fig13"):   # the paper's program's timings: never scored from our kernels
+        [c] = [c for c in ctx.claims if "6.29 s" in c["claim"] or "up to 7 times" in c["claim"]]
+        assert c["verdict"] == verdicts.NOT_REPRODUCIBLE
+
+
+def test_each_sentence_is_scored_once_across_the_recipes(out_root):
+    """Catches a sentence of the paper scored by two recipes (e.g. the N_p sentence of §7 once per
+    figure, or the 'other objects' sentence of Table 4 once per object): the report would count it
+    once and flag the others."""
+    from pfbench import report
+
+    for name in IDS:
+        if not (out_root / "multipdf" / f"{name}.json").exists():
+            rec = recipes.resolve(f"multipdf:{name}")
+            recipes.run(rec, out_root=out_root, quiet=True,
+                        options={k: v for k, v in TINY.items() if k in rec.option_keys})
+    records = [r for r in report.check_results(out_root)[0] if r["recipe"].startswith("multipdf:")]
+    findings, problems = report.scored_findings(records)
+    assert not [p for p in problems if "multipdf" in p.recipe], [p.what for p in problems]
+    assert len(findings["multipdf"]) == sum(FINDINGS.values())
 
 
 def test_fig11_horizon_and_noise_levels(tmp_path):
-    """fig11 honours steps= and runs one sweep per r_scale level, with claims tagged per level."""
+    """fig11 honours steps= and runs one sweep per r_scale level; each Ob5 sentence is one finding
+    with the other noise levels as sensitivity rows, and is scored only when the levels agree."""
     rec = recipes.resolve("multipdf:fig11")
     ctx = recipes.run(rec, out_root=tmp_path, quiet=True,
                       options={"runs": 2, "workers": 1, "steps": 50, "r_scale": "1,30"})
     df = pd.read_csv(tmp_path / "multipdf" / "fig11.csv")
     assert sorted(df["r_scale"].unique()) == [1.0, 30.0]
-    tags = {c["quantity"].split(":")[0] for c in ctx.claims}
-    assert {"r x 1", "r x 30"} <= tags
+    ob5 = [c for c in ctx.claims if c["verdict"] != verdicts.NOT_REPRODUCIBLE or c["sensitivity"]]
+    assert len(ob5) == 3
+    for c in ob5:
+        rows = {o["quantity"] for o in c["sensitivity"]}
+        assert "noise x 30" in rows, c
+        if c["verdict"] == verdicts.NOT_REPRODUCIBLE:
+            assert "noise x 1" in rows and c["depends_on_reading"]
+        else:
+            assert "does not decide it" in c["reading"]
     assert ctx.extra["sweeps"]["fig11"]["runs"] == 2
     assert (tmp_path / "multipdf" / "sweeps" / "fig11_r30-quick.jsonl").is_file()
+    assert (tmp_path / "multipdf" / "sweeps" / "fig11_fig10-quick.jsonl").is_file()  # Fig. 10 not in --out
     from pfbench.sweep.store import Store
 
     st = Store.read(tmp_path / "multipdf" / "sweeps" / "fig11_r30-quick.jsonl")
@@ -115,3 +154,99 @@ def test_table3_reads_the_code():
     assert r.loc[("Ob1", "var(v)"), "ours"] == "10"
     assert r.loc[("Ob5", "T_s (s)"), "ours"] == "0.0001"
     assert r.loc[("Ob5", "measurement noise std (m, N)"), "document"] == "lost in the extraction"
+
+
+def _o(verdict):
+    return verdicts.Outcome(verdict, "test", 0.0, (0.0, 0.0))
+
+
+def test_cases_rule():
+    """One sentence about many cases: agree only when enough cases agree, disagree when too many
+    disagree. Catches a rule that agrees on a majority where the sentence says 'each', and one that
+    ignores a disagreeing case."""
+    from reproductions.multipdf._common import cases_rule
+
+    A, D, U = verdicts.AGREE, verdicts.DISAGREE, verdicts.UNDECIDED
+    each = lambda vs: cases_rule([_o(v) for v in vs], 1.0, "w", "why").verdict
+    assert each([A, A, A]) == A
+    assert each([A, A, U]) == U
+    assert each([A, A, D]) == D
+    most = lambda vs: cases_rule([_o(v) for v in vs], 0.9, "w", "why").verdict
+    assert most([A] * 9 + [D]) == A                 # 90 % agree: 'almost every'
+    assert most([A] * 8 + [U, D]) == U              # 80-90 %: cannot tell
+    assert most([A] * 8 + [D, D]) == D              # at most 80 %
+    o = cases_rule([_o(A), verdicts.not_reproducible("lost")], 1.0, "w", "why")
+    assert o.verdict == verdicts.NOT_REPRODUCIBLE and "lost" in o.rule
+
+
+def test_over_noise_levels():
+    """Ob5's lost noise level: scored only when every swept level gives the same verdict. Catches a
+    verdict taken from our guessed level when another level says otherwise."""
+    from reproductions.multipdf._common import over_noise_levels
+
+    A, U = verdicts.AGREE, verdicts.UNDECIDED
+    out, reading, others = over_noise_levels([(1, _o(A)), (10, _o(A))])
+    assert out.verdict == A and "does not decide it" in reading and [r.quantity for r in others] == ["noise x 10"]
+    out, reading, others = over_noise_levels([(1, _o(A)), (10, _o(U))])
+    assert out.verdict == verdicts.NOT_REPRODUCIBLE and len(others) == 2
+
+
+def test_estimate_choice_is_one_constant(monkeypatch):
+    """[MultiPDF] Algs. 1-2 estimate after resampling: the choice is ESTIMATE in _common. Catches a
+    switch to "post" that would pass silently before run_filter takes estimate=, and the keyword
+    not passed once it does."""
+    from reproductions.multipdf import _common
+
+    def old(y, *, seed=0):
+        pass
+
+    def new(y, *, seed=0, estimate="pre"):
+        pass
+
+    assert _common.estimate_kw(old) == (None, {})
+    assert _common.estimate_kw(old, new) == (new, {"estimate": _common.ESTIMATE})
+    monkeypatch.setattr(_common, "ESTIMATE", "post")
+    with pytest.raises(RuntimeError, match="estimate"):
+        _common.estimate_kw(old)
+    assert _common.filter_kw(new) == {"estimate": "post"}
+
+
+def test_a_sentence_spanning_figures_reads_the_other_recipe_sweep(tmp_path):
+    """fig7 scores the (v1)-(v3) sentence with Figs. 5-6's runs: read from their stores when those
+    have the same spec (and then not listed as fig7's outputs), run into fig7's own stores
+    otherwise. Catches another recipe's store rewritten, and a reuse of a store with another spec."""
+    opts = {"runs": 2, "workers": 1}
+    recipes.run(recipes.resolve("multipdf:fig5"), out_root=tmp_path, quiet=True, options=opts)
+    store5 = tmp_path / "multipdf" / "sweeps" / "fig5-quick.jsonl"
+    before = store5.read_bytes()
+    ctx = recipes.run(recipes.resolve("multipdf:fig7"), out_root=tmp_path, quiet=True, options=opts)
+    assert ctx.extra["sweeps_read"] == ["fig5-quick.jsonl"]
+    assert set(ctx.extra["sweeps"]) == {"fig7", "fig7_fig6"}
+    assert store5.read_bytes() == before and str(store5) not in ctx.outputs
+    ctx = recipes.run(recipes.resolve("multipdf:fig7"), out_root=tmp_path, quiet=True,
+                      options={"runs": 3, "workers": 1})       # fig5's store has runs = 2
+    assert "fig7_fig5" in ctx.extra["sweeps"] and store5.read_bytes() == before
+
+
+def test_figures_label_axes_and_bands(tmp_path):
+    """Every aRMSE figure says what its axes (with units) and shaded bands are. Catches unlabelled
+    bands (the old Figs. 3/8) and axes without units."""
+    import matplotlib.pyplot as plt
+
+    from reproductions.multipdf import _common
+
+    summ = pd.DataFrame({"method": "multipdf", "n_particles": [100, 200, 100, 200], "n_filters": [1, 1, 2, 2],
+                         "runs": 5, "armse_mean": [1.0, 0.9, 1.1, 0.8], "armse_lo": [0.9, 0.8, 1.0, 0.7],
+                         "armse_hi": [1.1, 1.0, 1.2, 0.9]})
+    figs = []
+
+    class Ctx:
+        def write_figure(self, name, fig):
+            figs.append(fig)
+
+    _common.plot(Ctx(), "x", summ, "t")
+    ax = figs[0].axes[0]
+    assert "[" in ax.get_xlabel() and "[" in ax.get_ylabel()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert sum("95 % interval of the mean over 5 runs" in t for t in labels) == 1
+    plt.close(figs[0])
