@@ -45,16 +45,21 @@ SPEC_VERSION = 1
 
 def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), methods=("multipdf",),
               runs: int = 10, steps: int = 100, seed: int = 0, backend: str = "numba",
-              params: dict | None = None, resampling: str = "systematic") -> dict:
+              params: dict | None = None, resampling: str = "systematic", estimate: str = "pre") -> dict:
     """A normalised sweep specification (a plain JSON-able dict).
 
     ``model`` is a model spec (``"ob3:v4"`` = ``"ob3"`` with ``params={"version": 4}``; the spec
     stores the name and the parameters). ``configs``: explicit list of (method, n_particles,
     n_filters); otherwise the product methods x particles x filters (only multipdf uses N_f > 1).
     ``methods`` are :class:`pfbench.Method` names; a method the model does not support is an
-    error here (see :func:`check_supported`).
+    error here (see :func:`check_supported`). ``resampling`` and ``estimate`` (``pre`` or ``post``,
+    see :func:`pfbench.run_filter`; ``post`` for the particle methods only) hold for every
+    configuration. The filter seeds do not depend on ``estimate``, so a ``pre`` and a ``post`` sweep
+    with the same seed run the same filters on the same random numbers (paired); a spec without
+    ``estimate`` (an older store) means ``pre``.
     """
     from .. import models
+    from ..filters.methods import Estimate
     from ..resampling import Scheme
 
     model, params = models.parse_spec(model, params)
@@ -85,9 +90,10 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
         raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
     resampling = Scheme.parse(resampling).label
+    estimate = Estimate.parse(estimate).label
     spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
             "runs": int(runs), "steps": int(steps), "seed": int(seed), "backend": backend,
-            "resampling": resampling, "code": code_fingerprint(model)}
+            "resampling": resampling, "estimate": estimate, "code": code_fingerprint(model)}
     check_supported(spec)
     return spec
 
@@ -106,7 +112,12 @@ def check_supported(spec: dict) -> None:
     traj = model.simulate(2, seed=0)
     for m in dict.fromkeys(c[0] for c in spec["configs"]):
         run_filter(model, traj.y, traj.u, method=m, n_particles=2, backend="numpy",
-                   resampling=spec["resampling"], seed=0)
+                   resampling=spec["resampling"], estimate=estimate_of(spec), seed=0)
+
+
+def estimate_of(spec: dict) -> str:
+    """The spec's ``estimate`` (``pre`` for a spec written before the option existed)."""
+    return spec.get("estimate", "pre")
 
 
 def code_fingerprint(model: str) -> str:
@@ -147,10 +158,10 @@ def filter_seed(spec: dict, config, run: int) -> np.random.SeedSequence:
 
 # --------------------------------------------------------------------------- filtering
 def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: int, seed,
-                        backend: str = "numba", resampling: str = "systematic"):
+                        backend: str = "numba", resampling: str = "systematic", estimate: str = "pre"):
     """Estimates of a particle-family method (bootstrap, sir, sis, asir, multipdf), equal to
-    ``pfbench.run_filter(..., method=method)`` (same streams, kernels and default ESS threshold)
-    but without its per-call thread pool. Returns (est, sub_est)."""
+    ``pfbench.run_filter(..., method=method, estimate=estimate)`` (same streams, kernels and
+    default ESS threshold) but without its per-call thread pool. Returns (est, sub_est)."""
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
@@ -158,7 +169,8 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
     out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
                         n_filters=n_filters, resampling=resampling,
-                        ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
+                        ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1,
+                        estimate=estimate)
     est = out["est"]
     return est.mean(axis=0), est
 
@@ -199,10 +211,10 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         t0 = time.perf_counter()
         if Method.parse(m).family == "particle":
             est, _ = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
-                                         spec["resampling"])
+                                         spec["resampling"], estimate_of(spec))
         else:
             est = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
-                             seed=seed, resampling=spec["resampling"]).estimates
+                             seed=seed, resampling=spec["resampling"], estimate=estimate_of(spec)).estimates
         dt = time.perf_counter() - t0
         r = rmse(est, traj.x)
         out.append({"key": task_key(ci, run), "config": int(ci), "run": int(run), "method": m,
