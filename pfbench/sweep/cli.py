@@ -74,7 +74,8 @@ _OPTIONS = [
     click.option("--backend", default=None, help="numba (default) or numpy."),
     click.option("--estimate", type=click.Choice(ESTIMATES), default=None,
                  help="Point estimate of a step: pre (default; weighted, before resampling) or post "
-                      "(the resampled particles, [MultiPDF] Alg. 1-2; particle methods only)."),
+                      "(the resampled particles, [MultiPDF] Alg. 1-2) for the particle methods; mpf, "
+                      "guided and kalman keep their own."),
     click.option("--seed", type=int, default=None, help="Root seed, an integer >= 0 (default 0)."),
     click.option("--out", default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl; "
                                              "one sweep at a time may write it."),

@@ -52,11 +52,13 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     stores the name and the parameters). ``configs``: explicit list of (method, n_particles,
     n_filters); otherwise the product methods x particles x filters (only multipdf uses N_f > 1).
     ``methods`` are :class:`pfbench.Method` names; a method the model does not support is an
-    error here (see :func:`check_supported`). ``resampling`` and ``estimate`` (``pre`` or ``post``,
-    see :func:`pfbench.run_filter`; ``post`` for the particle methods only) hold for every
-    configuration. The filter seeds do not depend on ``estimate``, so a ``pre`` and a ``post`` sweep
-    with the same seed run the same filters on the same random numbers (paired); a spec without
-    ``estimate`` (an older store) means ``pre``.
+    error here (see :func:`check_supported`). ``resampling`` holds for every configuration,
+    ``estimate`` (``pre`` or ``post``, see :func:`pfbench.run_filter`) for those of the particle
+    methods: mpf, guided and kalman configurations take their own estimate (the marginalized PF's
+    weighted one before resampling, [Schon2005] Alg. 1), so a MultiPDF-vs-MPF sweep can run
+    MultiPDF with ``post`` (:func:`estimate_for`). The filter seeds do not depend on ``estimate``,
+    so a ``pre`` and a ``post`` sweep with the same seed run the same filters on the same random
+    numbers (paired); a spec without ``estimate`` (an older store) means ``pre``.
     """
     from .. import models
     from ..filters.methods import Estimate
@@ -112,12 +114,18 @@ def check_supported(spec: dict) -> None:
     traj = model.simulate(2, seed=0)
     for m in dict.fromkeys(c[0] for c in spec["configs"]):
         run_filter(model, traj.y, traj.u, method=m, n_particles=2, backend="numpy",
-                   resampling=spec["resampling"], estimate=estimate_of(spec), seed=0)
+                   resampling=spec["resampling"], estimate=estimate_for(spec, m), seed=0)
 
 
 def estimate_of(spec: dict) -> str:
     """The spec's ``estimate`` (``pre`` for a spec written before the option existed)."""
     return spec.get("estimate", "pre")
+
+
+def estimate_for(spec: dict, method: str) -> str:
+    """The estimate a configuration of ``method`` runs with: the spec's for the particle methods,
+    ``pre`` (the method's own) for mpf, guided and kalman."""
+    return estimate_of(spec) if Method.parse(method).family == "particle" else "pre"
 
 
 def code_fingerprint(model: str) -> str:
@@ -211,10 +219,10 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         t0 = time.perf_counter()
         if Method.parse(m).family == "particle":
             est, _ = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
-                                         spec["resampling"], estimate_of(spec))
+                                         spec["resampling"], estimate_for(spec, m))
         else:
             est = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
-                             seed=seed, resampling=spec["resampling"], estimate=estimate_of(spec)).estimates
+                             seed=seed, resampling=spec["resampling"]).estimates
         dt = time.perf_counter() - t0
         r = rmse(est, traj.x)
         out.append({"key": task_key(ci, run), "config": int(ci), "run": int(run), "method": m,

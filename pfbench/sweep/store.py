@@ -171,9 +171,10 @@ class Store:
 
     # ----- views -----------------------------------------------------------------------
     def frame(self) -> pd.DataFrame:
-        """One row per finished task, sorted by (config, run); ``estimate`` is the spec's (the
-        same on every row; ``pre`` for a store written before the option existed)."""
-        from .core import estimate_of
+        """One row per finished task, sorted by (config, run); ``estimate`` is the one the task ran
+        with (:func:`~pfbench.sweep.core.estimate_for`: ``pre`` for a store written before the
+        option existed)."""
+        from .core import estimate_for
 
         cols = ["config", "run", "method", "n_particles", "n_filters", "armse", "elapsed_s"]
         if not self.records:
@@ -181,7 +182,7 @@ class Store:
         rows = []
         for r in self.records.values():
             row = {k: r[k] for k in cols[:5]}
-            row["estimate"] = estimate_of(self.spec)
+            row["estimate"] = estimate_for(self.spec, r["method"])
             row.update({k: r[k] for k in cols[5:]})
             for j, v in enumerate(r["rmse"]):
                 row[f"rmse_{j + 1}"] = v
@@ -209,9 +210,9 @@ def load_frame(path) -> tuple[pd.DataFrame, dict, list]:
         info = json.loads(meta)
         frame = table.to_pandas()
         if "estimate" not in frame.columns:  # exported before the option existed
-            from .core import estimate_of
+            from .core import estimate_for
 
-            frame.insert(5, "estimate", estimate_of(info["spec"]))
+            frame.insert(5, "estimate", [estimate_for(info["spec"], m) for m in frame["method"]])
         return frame, info["spec"], info.get("chunks", [])
     st = Store.read(path)
     return st.frame(), st.spec, st.chunks

@@ -22,8 +22,9 @@ def _order(method: str) -> int:
 def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFrame:
     """Per (method, N_p, N_f): runs, aRMSE mean and the paper's 95 % interval
     mean +- 2 sigma / sqrt(m) ([MultiPDF] §5), and filter runs per second per core; ``estimate``
-    is the spec's (``pre`` without a spec or for an older store)."""
-    from .core import estimate_of
+    is the one the configuration ran with (:func:`~pfbench.sweep.core.estimate_for`; ``pre``
+    without a spec or for an older store)."""
+    from .core import estimate_for
 
     rows = []
     if frame.empty:
@@ -33,7 +34,7 @@ def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFra
         mu, lo, hi = mean_interval(g["armse"].to_numpy())
         el = float(g["elapsed_s"].sum())
         rows.append({"model": spec["model"] if spec else "", "method": m, "n_particles": int(n_p),
-                     "n_filters": int(n_f), "estimate": estimate_of(spec or {}), "runs": int(len(g)),
+                     "n_filters": int(n_f), "estimate": estimate_for(spec or {}, m), "runs": int(len(g)),
                      "armse_mean": mu, "armse_lo": lo, "armse_hi": hi,
                      "runs_per_s": len(g) / el if el > 0 else float("nan")})
     out = pd.DataFrame(rows)

@@ -176,37 +176,43 @@ def test_cli_run_estimate():
 
 
 def test_sweep_estimate_cli_store_and_older_stores(tmp_path):
-    """``pfbench sweep --estimate post`` writes a post spec whose tasks are run_filter's post
-    aRMSEs (the task's own filter seed), with an ``estimate`` column in the frame and the summary;
-    a store whose spec has no ``estimate`` (written before the option) reads as pre, and the same
-    sweep as pre gives other numbers on the same seeds. Catches a spec option the tasks ignore,
-    and an older store that no longer loads."""
+    """``pfbench sweep --estimate post`` on a MultiPDF-vs-MPF grid: the MultiPDF tasks are
+    run_filter's post aRMSEs (the task's own filter seed; pre gives others on the same seeds), the
+    MPF tasks keep the MPF's own estimate (pre: post is refused by run_filter but not by a sweep
+    that compares against the MPF), and the frame and summary say which per configuration. A store
+    whose spec has no ``estimate`` (written before the option) reads as pre. Catches a spec option
+    the tasks ignore, a post sweep refused for its MPF configurations, and an older store that no
+    longer loads."""
     from pfbench.cli import main
     from pfbench.sweep import load_frame, summarize_frame
     from pfbench.sweep.core import filter_seed, trajectory_seed
     from pfbench.sweep.store import Store
 
     out = tmp_path / "post.jsonl"
-    r = CliRunner().invoke(main, ["sweep", "--model", "ob1", "--method", "bootstrap,multipdf", "--particles", "20",
-                                  "--filters", "2", "--runs", "2", "--steps", "10", "--backend", "numpy",
+    r = CliRunner().invoke(main, ["sweep", "--model", "ob2", "--method", "multipdf,mpf", "--particles", "20",
+                                  "--filters", "1,2", "--runs", "2", "--steps", "10", "--backend", "numpy",
                                   "--estimate", "post", "--workers", "1", "--quiet", "--out", str(out)])
     assert r.exit_code == 0, r.output
     frame, spec, _ = load_frame(out)
-    assert spec["estimate"] == "post" and set(frame["estimate"]) == {"post"}
-    assert set(summarize_frame(frame, spec)["estimate"]) == {"post"}
-    model = models.get("ob1")
+    assert spec["estimate"] == "post" and len(frame) == 6
+    expect = {"multipdf": "post", "mpf": "pre"}
+    assert list(frame["estimate"]) == [expect[m] for m in frame["method"]]
+    summ = summarize_frame(frame, spec)
+    assert list(summ["estimate"]) == [expect[m] for m in summ["method"]]
+    model = models.get("ob2")
     for row in frame.itertuples():
         traj = model.simulate(10, seed=np.random.default_rng(trajectory_seed(spec, row.run)))
         cfg = spec["configs"][row.config]
-        res = {at: pfbench.run_filter(model, traj.y, method=cfg[0], n_particles=cfg[1], n_filters=cfg[2],
-                                      backend="numpy", seed=filter_seed(spec, cfg, row.run), estimate=at)
-               for at in ("pre", "post")}
-        assert row.armse == pytest.approx(pfbench.metrics.armse(res["post"].estimates, traj.x), rel=1e-12)
-        assert row.armse != pytest.approx(pfbench.metrics.armse(res["pre"].estimates, traj.x), rel=1e-12)
+        run = lambda at: pfbench.metrics.armse(pfbench.run_filter(  # noqa: E731
+            model, traj.y, traj.u, method=cfg[0], n_particles=cfg[1], n_filters=cfg[2], backend="numpy",
+            seed=filter_seed(spec, cfg, row.run), estimate=at).estimates, traj.x)
+        assert row.armse == pytest.approx(run(row.estimate), rel=1e-12)
+        if row.method == "multipdf":
+            assert row.armse != pytest.approx(run("pre"), rel=1e-12)
     old_spec = {k: v for k, v in spec.items() if k != "estimate"}
     old = Store.open(tmp_path / "old.jsonl", old_spec)
-    old.append([dict(next(iter(Store.read(out).records.values())))])
+    old.append([dict(rec) for rec in Store.read(out).records.values()])
     old.close()
     frame, spec, _ = load_frame(tmp_path / "old.jsonl")
-    assert "estimate" not in spec and list(frame["estimate"]) == ["pre"]
-    assert list(summarize_frame(frame, spec)["estimate"]) == ["pre"]
+    assert "estimate" not in spec and set(frame["estimate"]) == {"pre"}
+    assert set(summarize_frame(frame, spec)["estimate"]) == {"pre"}
