@@ -15,9 +15,10 @@ same generators, so both backends give the same estimates.
   for a given (seed, N_f), and still identical across backends.
 
 MultiPDF ([MultiPDF] Alg. 2): N_f independent bootstrap sub-filters with round(N_p / N_f)
-particles each; the estimate at every step is the mean of the sub-filter estimates (eq. 9), the
-variance is the law of total variance over the sub-filters, and ``loglik`` is the log of the mean
-of the sub-filters' (unbiased) likelihood estimates, with increments that sum to it. When
+particles each; the estimate at every step is the mean of the sub-filter estimates (eq. 9; each
+taken before or after resampling, ``run_filter``'s ``estimate``), the variance is the law of
+total variance over the sub-filters, and ``loglik`` is the log of the mean of the sub-filters'
+(unbiased) likelihood estimates, with increments that sum to it. When
 round(N_p / N_f) * N_f differs from N_p, ``n_particles`` reports the particles actually used and
 ``info["n_particles_requested"]`` the request (each sub-filter is off by at most half a particle).
 
