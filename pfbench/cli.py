@@ -25,6 +25,7 @@ import math
 import os
 import sys
 import traceback
+from pathlib import Path
 
 import click
 
@@ -187,6 +188,17 @@ MODEL_HELP = ("Registered model, optionally with a variant: ob1, ob3:v4 (= --par
 PARAM_HELP = "Model parameter KEY=VALUE (repeatable; JSON-typed: 3 int, 0.5 float, true, text)."
 
 
+TRUTH_STREAM = "numpy.random.SeedSequence(seed, spawn_key=(1,))"
+
+
+def truth_stream(seed: int):
+    """The generator of ``pfbench run``'s simulated truth when no --truth-seed is given: derived
+    from the filter's seed but apart from its stream (:data:`TRUTH_STREAM`)."""
+    import numpy as np
+
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
+
+
 @main.command()
 @click.option("--model", "model_name", required=True, help=MODEL_HELP)
 @click.option("--method", type=click.Choice(METHODS), default="bootstrap", show_default=True,
@@ -207,14 +219,22 @@ PARAM_HELP = "Model parameter KEY=VALUE (repeatable; JSON-typed: 3 int, 0.5 floa
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
 @click.option("--dtype", type=click.Choice(DTYPES), default="float64", show_default=True)
 @click.option("--threads", type=int, default=None, callback=positive_int("threads"),
-              help="numba threads for one filter's particle loops (default: all cores; 1: sequential).")
-@click.option("--seed", type=int, default=0, show_default=True)
+              help="numba threads for one filter's particle loops (default: the cores not busy with other "
+                   "processes now; 1: sequential).")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of the filter's random numbers.")
+@click.option("--truth-seed", type=click.IntRange(min=0), default=None,
+              help="Seed of the simulated truth (default: a stream derived from --seed, apart from the "
+                   "filter's, so the filter never shares the truth's noise).")
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help=PARAM_HELP)
 @click.option("--data", type=click.Path(dir_okay=False), default=None,
               help="CSV log (time_s, y..., u...) to filter instead of a simulation.")
+@click.option("--out", "out_file", type=click.Path(dir_okay=False), default=None,
+              help="Write the per-step estimates, variances, ESS and log-likelihood increments to this "
+                   ".csv or .parquet file (and the run's provenance to <file>.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def run(model_name, method, particles, filters, steps, resampling, ess_threshold, estimate, backend, dtype,
-        threads, seed, params, data, as_json):
+        threads, seed, truth_seed, params, data, out_file, as_json):
     """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
     import numpy as np
 
@@ -223,6 +243,14 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
 
     name, kw = models.parse_spec(model_name, parse_key_values(params, "--param"))
     model = models.get(name, **kw)
+    if out_file and Path(out_file).suffix.lower() not in (".csv", ".parquet"):
+        raise click.BadParameter(f"{out_file}: the file must end in .csv or .parquet", param_hint="'--out'")
+    if out_file:
+        from .resources import check_writable
+
+        check_writable(Path(out_file), "--out")
+    if filters > 1 and method != "multipdf":
+        raise click.BadParameter(f"--filters {filters} needs --method multipdf", param_hint="'--filters'")
     if filters > particles:
         raise click.BadParameter(f"{filters} sub-filters for {particles} particles: need --filters <= --particles",
                                  param_hint="'--filters'")
@@ -236,7 +264,7 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
 
         traj = load_log(data, model)
     else:
-        traj = model.simulate(steps, seed=seed)
+        traj = model.simulate(steps, seed=truth_stream(seed) if truth_seed is None else truth_seed)
     res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
                      resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
                      seed=seed, n_threads=threads, estimate=estimate)
@@ -244,7 +272,9 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
     out = {
         "model": name, "params": kw, "method": method, "backend": backend, "dtype": dtype,
         "n_particles": res.n_particles, "n_filters": res.n_filters, "n_steps": traj.n_steps,
-        "seed": seed, "resampling": resampling, "estimate": estimate,
+        "seed": seed, "truth_seed": None if data else (truth_seed if truth_seed is not None else
+                                                      f"derived from --seed {seed} ({TRUTH_STREAM})"),
+        "resampling": resampling, "estimate": estimate,
         "armse": metrics.armse(res.estimates, traj.x) if have_truth else None,
         "rmse": metrics.rmse(res.estimates, traj.x).tolist() if have_truth else None,
         "loglik": res.loglik, "n_resampled": res.n_resampled,
@@ -256,6 +286,19 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         out["n_particles_requested"] = res.info["n_particles_requested"]
     if res.info.get("note"):
         out["note"] = res.info["note"]
+    bad = res.first_nonfinite_step()
+    if bad is not None:
+        click.echo(f"warning: the log-likelihood is {res.loglik} from step {bad} on: there every particle's "
+                   "likelihood was zero, NaN or infinite (check the model's log_likelihood and transition, "
+                   "or the measurement at that step)", err=True)
+    if out_file:
+        from . import io
+        from .provenance import provenance
+
+        frame = res.to_dataframe(getattr(model, "state_names", None))
+        (io.write_parquet if Path(out_file).suffix.lower() == ".parquet" else io.write_csv)(out_file, frame)
+        io.write_json(f"{out_file}.json", provenance(command="pfbench run", **{k: v for k, v in out.items()
+                                                                               if k != "rmse"}))
     if as_json:
         from .io import to_json
 
@@ -376,10 +419,10 @@ def options_cmd(recipe_id):
 @main.command()
 @click.argument("recipe_ids", nargs=-1)
 @click.option("--all", "run_all", is_flag=True, help="Run every registered recipe.")
-@click.option("--paper", default=None, help="With --all: only this paper's recipes.")
+@click.option("--paper", default=None, help="Every recipe of this paper (alone or with --all).")
 @click.option("--full", is_flag=True, help="Paper scale (slow; shows a progress bar).")
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
 @click.option("--data", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Run the recipe on a real log instead of a simulation (where supported).")
@@ -398,8 +441,10 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
 
     if run_all and recipe_ids:
         raise click.UsageError("give recipe IDs or --all, not both")
-    if paper is not None and not run_all:
-        raise click.UsageError("--paper selects recipes with --all (e.g. --all --paper thesis)")
+    if paper is not None and recipe_ids:
+        raise click.UsageError("--paper runs every recipe of a paper (as --all --paper): give recipe IDs "
+                               "or --paper, not both")
+    run_all = run_all or paper is not None
     if run_all:
         recs = recipes.select(paper)
     elif recipe_ids:
@@ -499,12 +544,14 @@ def report(out_root, strict, as_json, compare):
 @main.command()
 @click.option("--json", "as_json", is_flag=True)
 def info(as_json):
-    """CPU, core count, numba threading layer, package versions, registered models."""
+    """CPU, core count, numba threading layer, package versions, GPU and CuPy, registered models."""
     from . import models
     from .provenance import host_info, numba_threading_layer, package_versions
 
+    from .backends.cupy_backend import gpu_info
+
     data = {"host": host_info(), "numba_threading_layer": numba_threading_layer(),
-            "packages": package_versions(), "models": models.names()}
+            "packages": package_versions(), "gpu": gpu_info(), "models": models.names()}
     if as_json:
         from .io import to_json
 
@@ -515,6 +562,10 @@ def info(as_json):
     click.echo(f"{'numba threading layer':>22}: {data['numba_threading_layer']}")
     for k, v in data["packages"].items():
         click.echo(f"{k:>22}: {v}")
+    g = data["gpu"]
+    click.echo(f"{'cupy':>22}: {g.get('cupy') or 'not installed'}")
+    click.echo(f"{'gpu':>22}: {g.get('gpu')}" + (f" ({g['gpu_memory_bytes'] / 2**30:.0f} GiB, CUDA runtime "
+                                                 f"{g['cuda_runtime']})" if g.get("gpu_memory_bytes") else ""))
     click.echo(f"{'models':>22}: {', '.join(data['models'])}")
 
 

@@ -61,12 +61,64 @@ def die_with_parent(parent_pid: int) -> None:
 
 
 def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity; ``os.cpu_count()`` where that is not
-    available): the default number of workers and threads."""
+    """The cores this process may run on: its CPU affinity (``os.cpu_count()`` where that is not
+    available), capped by a cgroup CPU quota (a container given 1.5 CPUs gets 1): the default number
+    of sweep workers and compile jobs."""
     try:
-        return len(os.sched_getaffinity(0))
+        cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
+        cores = os.cpu_count() or 1
+    quota = cgroup_cpu_quota()
+    return max(1, min(cores, int(quota))) if quota is not None else cores
+
+
+def cgroup_cpu_quota(root: str = "/sys/fs/cgroup") -> float | None:
+    """CPUs the cgroup quota allows (cgroup v2 ``cpu.max``, else v1 ``cpu.cfs_quota_us`` /
+    ``cpu.cfs_period_us``); None when there is no quota or it cannot be read."""
+    try:
+        quota, period = Path(root, "cpu.max").read_text().split()[:2]
+        return None if quota == "max" else int(quota) / int(period)
+    except (OSError, ValueError):
+        pass
+    try:
+        quota = int(Path(root, "cpu", "cpu.cfs_quota_us").read_text())
+        period = int(Path(root, "cpu", "cpu.cfs_period_us").read_text())
+        return quota / period if quota > 0 and period > 0 else None
+    except (OSError, ValueError):
+        return None
+
+
+def _runnable_elsewhere() -> int:
+    """Threads of other processes that are running or waiting for a core right now: the kernel's
+    runnable count (``/proc/loadavg``, 4th field) less this process's own running threads (numba's
+    pool may still be spinning after its last parallel region). 0 where /proc is not there."""
+    try:
+        running = int(Path("/proc/loadavg").read_text().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return 0
+    own = 0
+    try:
+        for task in os.scandir("/proc/self/task"):
+            try:
+                stat = Path(task.path, "stat").read_text()
+            except OSError:
+                continue
+            if stat[stat.rindex(")") + 2:].startswith("R"):
+                own += 1
+    except OSError:
+        own = 1
+    return max(0, running - own)
+
+
+def free_cores() -> int:
+    """How many cores a parallel region of this process can have to itself now: :func:`usable_cores`
+    less the threads of other processes that are runnable, at least 1.
+
+    Why: a parallel kernel waits at a barrier for its slowest thread a few times per step; on a
+    core shared with another busy process that thread is descheduled for a whole time slice, and a
+    run with all cores' threads became many times slower than with one thread. Asking for no more
+    threads than there are free cores keeps the default from collapsing on a busy machine."""
+    return max(1, usable_cores() - _runnable_elsewhere())
 
 
 def _init_worker(parent_pid: int, shared: bool, initializer: Callable | None, initargs: tuple) -> None:

@@ -90,6 +90,8 @@ def filter_memory(model, method: str, *, n_filters: int = 1, n_steps: int = 1, d
     fixed = F * M * (2 * n_x * 8 + 2 * 8 + 2) * 2 + 8 * M * (n_x + n_y) * 4 + (1 << 20)
     if fam == "kalman":
         return MemoryNeed(fixed + 8 * M * n_x * n_x * 4, 0)
+    if backend == "cupy":  # on the host only the initial particles (the GPU memory is checked there)
+        return MemoryNeed(int(fixed), n_x * (item + 8))
     per = 2 * n_x * item + 5 * 8 + 8 * n_noise + temps * 8 * (n_x + n_y)
     if store_particles:
         per += M * (n_x * item + 8)

@@ -209,7 +209,7 @@ def close_to(ours: float, paper: float, tol: float, se: float = 0.0, why: str = 
         interval = (ours - Z95 * float(se), ours + Z95 * float(se))
     lo, hi = float(interval[0]), float(interval[1])
     point = lo == hi
-    rule = (f"{'ours' if point else 'our 95 % interval'} within {tol:.0%} of the paper's value "
+    rule = (f"{'ours' if point else 'our 95 % interval'} within {tol * 100:.3g} % of the paper's value "
             f"({'agree if inside, disagree otherwise' if point else 'agree if wholly inside, disagree if wholly outside, undecided otherwise'})")
     if why:
         rule += f" ({why})"

@@ -389,3 +389,37 @@ def test_static_reader_sees_helpers():
     assert {"repeats", "host_power_w", "board_power_w"} <= keys       # via _opt_float / _repeats
     keys, _, data = _reads(inspect.unwrap(recipes.resolve("embedded:tableA1").func), {})
     assert keys == {"pf_seeds"} and data                              # via _grid -> _experiment
+
+
+def test_run_truth_and_filter_streams_are_apart_and_out_writes_tidy_steps(tmp_path):
+    """The truth used to be simulated from the filter's own seed (ob1 at N_p = 1 gave aRMSE exactly
+    0 for most seeds); now it comes from a derived stream or --truth-seed, said in --json. --out
+    writes one row per step and the provenance beside it. Catches the shared stream and a missing
+    per-step column."""
+    import pandas as pd
+
+    out = tmp_path / "est.csv"
+    r = CliRunner().invoke(main, ["run", "--model", "ob1", "--particles", "1", "--steps", "20", "--backend",
+                                  "numpy", "--json", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    assert data["armse"] > 0 and "derived from --seed 0" in data["truth_seed"]
+    frame = pd.read_csv(out)
+    assert len(frame) == 20 and {"step", "x", "x_var", "ess", "loglik_increment", "degenerate"} <= set(frame)
+    assert frame["loglik_increment"].sum() == pytest.approx(data["loglik"])
+    prov = json.loads((tmp_path / "est.csv.json").read_text())
+    assert prov["command"] == "pfbench run" and prov["n_particles"] == 1 and "packages" in prov
+    r2 = CliRunner().invoke(main, ["run", "--model", "ob1", "--particles", "1", "--steps", "20", "--backend",
+                                   "numpy", "--json", "--truth-seed", "7"])
+    assert json.loads(r2.stdout)["truth_seed"] == 7 and json.loads(r2.stdout)["armse"] != data["armse"]
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["run", "--model", "ob1", "--seed", "-1"], "--seed"),
+    (["run", "--model", "ob1", "--filters", "2"], "--filters 2 needs --method multipdf"),
+    (["run", "--model", "ob1", "--out", "x.txt"], ".csv or .parquet"),
+    (["reproduce", "fig5", "--seed", "-1"], "--seed"),
+])
+def test_run_and_reproduce_refuse_bad_values_in_one_line(args, needle):
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 2 and needle in r.output and "Traceback" not in r.output

@@ -68,3 +68,44 @@ def test_workers_of_a_shared_pool_start_no_compile_helpers(monkeypatch):
         assert list(pool.map(_helper_allowed, range(4))) == [False] * 4
     with worker_pool(1) as pool:
         assert list(pool.map(_helper_allowed, range(2))) == [True] * 2
+
+
+def test_cgroup_quota_is_read_from_v2_and_v1_files(tmp_path):
+    """A container's CPU quota caps the cores: catches a quota read as cores per period the wrong
+    way round, and "max" (no quota) read as a number."""
+    from pfbench.procs import cgroup_cpu_quota
+
+    (tmp_path / "cpu.max").write_text("150000 100000\n")
+    assert cgroup_cpu_quota(str(tmp_path)) == 1.5
+    (tmp_path / "cpu.max").write_text("max 100000\n")
+    assert cgroup_cpu_quota(str(tmp_path)) is None
+    (tmp_path / "cpu.max").unlink()
+    (tmp_path / "cpu").mkdir()
+    (tmp_path / "cpu" / "cpu.cfs_quota_us").write_text("300000\n")
+    (tmp_path / "cpu" / "cpu.cfs_period_us").write_text("100000\n")
+    assert cgroup_cpu_quota(str(tmp_path)) == 3.0
+    (tmp_path / "cpu" / "cpu.cfs_quota_us").write_text("-1\n")
+    assert cgroup_cpu_quota(str(tmp_path)) is None
+
+
+def test_free_cores_leaves_out_the_cores_other_processes_keep_busy():
+    """With more spinning processes than cores, a parallel region gets one thread (the default
+    thread count that kept a filter from collapsing on a busy machine); catches free_cores ignoring
+    the load, and the kernel not asking it."""
+    import subprocess
+    import sys
+    import time
+
+    from pfbench.backends.numba_backend import free_cores as used_by_the_kernel
+    from pfbench.bench.busy import SPIN
+    from pfbench.procs import free_cores, usable_cores
+
+    assert used_by_the_kernel is free_cores
+    procs = [subprocess.Popen([sys.executable, "-c", SPIN]) for _ in range(usable_cores() + 2)]
+    try:
+        time.sleep(0.5)
+        assert free_cores() == 1
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import write_text
+from ..procs import free_cores
 from ..filters.methods import Estimate, Method
 from ..resampling import Scheme
 from . import cache, compile_helper, native_call, pcg64
@@ -307,7 +308,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
             addresses = _PASS_ADDRESSES.setdefault(key, addresses + [0] * (3 - len(addresses)))
         args[-3:] = addresses  # an index scheme's kernel never calls the merge: its address is 0
         if parallel:
-            k = min(int(n_threads or numba.config.NUMBA_NUM_THREADS), numba.config.NUMBA_NUM_THREADS)
+            k = min(int(n_threads or free_cores()), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
                 numba.set_num_threads(k)
                 try:

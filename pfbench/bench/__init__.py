@@ -27,9 +27,11 @@ Sections (each writes its JSON into the directory of ``--out``, default ``result
   ``pfbench run`` per method.
 * **scaling** (``scaling.json``, ``scaling.png``, :mod:`pfbench.bench.scaling`): ns per
   particle-step for N_p = 10^2 ... 10^7.
+* **busy** (``busy.json``, :mod:`pfbench.bench.busy`): the default thread count against one
+  thread with 2 x (cores) other processes spinning.
 
 ``pfbench bench`` runs main + startup (``--quick``: main only, small), ``--scaling`` and/or
-``--startup`` run only those sections, ``--all`` runs all three. Compilation is excluded from
+``--startup`` / ``--busy`` run only those sections, ``--all`` runs all four. Compilation is excluded from
 every timing but the startup section's: each configuration runs once untimed first.
 """
 from __future__ import annotations
@@ -336,7 +338,7 @@ def main_text(res: dict) -> list[str]:
 def _section_paths(out_path) -> dict:
     d = Path(out_path).parent
     return {"bench": Path(out_path), "startup": d / "startup.json", "scaling": d / "scaling.json",
-            "scaling_png": d / "scaling.png"}
+            "scaling_png": d / "scaling.png", "busy": d / "busy.json"}
 
 
 @click.command()
@@ -347,7 +349,9 @@ def _section_paths(out_path) -> dict:
               "section: scaling.json and scaling.png beside --out.")
 @click.option("--startup", is_flag=True, help="Only (or also, with --scaling) the cold/warm start per method: "
               "startup.json beside --out.")
-@click.option("--all", "run_all", is_flag=True, help="Main, startup and scaling sections.")
+@click.option("--busy", is_flag=True, help="Only (or also) the default thread count vs 1 thread with "
+              "2 x (cores) busy processes: busy.json beside --out.")
+@click.option("--all", "run_all", is_flag=True, help="Main, startup, scaling and busy sections.")
 @click.option("--cold-repeats", type=click.IntRange(1, 20), default=1, show_default=True,
               help="Cold starts per method (each on a fresh, empty cache; expensive).")
 @click.option("--no-particles", is_flag=True, help="Skip the `particles` library comparison.")
@@ -355,16 +359,16 @@ def _section_paths(out_path) -> dict:
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), default="results/bench/bench.json",
               show_default=True, help="Main JSON; the other sections write beside it.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
-def bench(repeats, quick, scaling, startup, run_all, cold_repeats, no_particles, no_c, out_path, as_json):
+def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_particles, no_c, out_path, as_json):
     """Time the engine against the floor, the C reference and the `particles` library; cold/warm
     start per method (--startup); cost vs N_p (--scaling)."""
     from ..io import to_json, write_json
     from ..resources import check_writable, path_error
 
     if run_all:
-        sections = ["bench", "startup", "scaling"]
-    elif scaling or startup:
-        sections = [s for s, on in (("startup", startup), ("scaling", scaling)) if on]
+        sections = ["bench", "startup", "scaling", "busy"]
+    elif scaling or startup or busy:
+        sections = [s for s, on in (("startup", startup), ("scaling", scaling), ("busy", busy)) if on]
     else:
         sections = ["bench"] if quick else ["bench", "startup"]
     paths = _section_paths(out_path)
@@ -409,6 +413,13 @@ def bench(repeats, quick, scaling, startup, run_all, cold_repeats, no_particles,
         plot(res, paths["scaling_png"])
         lines += ["", "cost vs N_p (Ob1 bootstrap, float64):", *text(res),
                   f"-> {paths['scaling']}, {paths['scaling_png']}"]
+    if "busy" in sections:
+        from .busy import run_busy, text as busy_text
+
+        res = run_busy(rounds=3 if quick else max(repeats, 3))
+        save("busy", res)
+        lines += ["", "default threads on a busy machine (Ob1 bootstrap, M = 200, medians of 3):", *busy_text(res),
+                  f"-> {paths['busy']}"]
     if as_json:
         click.echo(to_json(results))
     elif lines:

@@ -60,7 +60,8 @@ def _need(model, engine: str, n: int, m: int) -> int:
 
 
 def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STEPS,
-                min_steps: int = MIN_STEPS, engines=tuple(ENGINES), progress: bool = True) -> dict:
+                min_steps: int = MIN_STEPS, engines=tuple(ENGINES), progress: bool = True,
+                gpu: bool = True) -> dict:
     """Time every engine at every size; returns the table, the top's limit and the ratios."""
     from tqdm.auto import tqdm
 
@@ -156,14 +157,51 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
     targets = [check("ns_1e6_over_1e3", growth),
                check("threads_speedup_1e6", speedup.get(10 ** 6)),
                check("threads_speedup_1e5", speedup.get(10 ** 5))]
+    gpu = gpu_section(model, sizes, target, min_steps, repeats) if gpu else {"skipped": "not asked"}
+    rows += gpu.pop("rows", [])
+    shown = {e: ENGINES[e] for e in engines}
+    if any(r["engine"] == "cupy" for r in rows):
+        shown["cupy"] = GPU_LABEL
     return provenance(kind="bench_scaling", repeats=repeats, target_particle_steps=target,
-                      min_steps=min_steps, engines={e: ENGINES[e] for e in engines}, rows=rows,
+                      min_steps=min_steps, engines=shown, rows=rows, gpu=gpu,
                       largest_particles_run=largest, top_limited_by=limited,
                       memory_budget_bytes=budget, memory_budget_source=source,
                       numba_1t_ns_1e6_over_1e3=growth,
                       threads_speedup={str(n): s for n, s in speedup.items()},
                       threads_speedup_rounds={str(n): spread.get(n) for n in speedup},
                       c_note=c_note, targets=targets)
+
+
+GPU_LABEL = "CuPy, GPU"
+
+
+def gpu_section(model, sizes, target: int, min_steps: int, repeats: int) -> dict:
+    """The ``cupy`` rows (float64, ``sizes`` and 10^8 if the device memory allows) and the copy
+    bandwidth floor, or ``{"skipped": reason}`` without CuPy or a GPU."""
+    from ..backends import cupy_backend
+    from ..errors import InputError
+    from ..filters import run_filter
+
+    try:
+        cp = cupy_backend.import_cupy()
+    except InputError as exc:
+        return {"skipped": str(exc)}
+    bw = cupy_backend.d2d_bandwidth(cp)
+    out = {"gpu": cupy_backend.gpu_info(), "d2d_bytes_per_s": bw, "floor_ns_float64": 16e9 / bw, "rows": []}
+    free = cp.cuda.Device().mem_info[0]
+    for n, m in plan(sorted(set(sizes) | {10 ** 8}), target, min_steps):
+        row = {"particles": n, "steps": m, "engine": "cupy", "label": GPU_LABEL, "ns_per_particle_step": None}
+        need = cupy_backend.device_memory_need(model, n, 1, "float64", "bootstrap", True)
+        if need > free * cupy_backend.DEVICE_FRACTION:
+            row["skipped"] = f"GPU memory: needs about {need / 2**30:.1f} GiB, {free / 2**30:.1f} GiB free"
+        else:
+            traj = model.simulate(m, seed=1)
+            run_filter(model, traj.y[:3], n_particles=n, backend="cupy")  # kernels built and checked
+            loop = [run_filter(model, traj.y, n_particles=n, backend="cupy", seed=r).info["loop_s"]
+                    for r in range(max(1, repeats))]
+            row["ns_per_particle_step"] = statistics.median(loop) * 1e9 / (n * m)
+        out["rows"].append(row)
+    return out
 
 
 def plot(res: dict, path) -> None:
@@ -215,6 +253,12 @@ def text(res: dict) -> list[str]:
         if r.get("skipped") and r["engine"] != "c_fast":
             out.append(f"skipped {r['label']} at N_p = {r['particles']}: {r['skipped']}")
     out.append(f"top of the range limited by: {res['top_limited_by']}")
+    g = res.get("gpu") or {}
+    if g.get("d2d_bytes_per_s"):
+        out.append(f"GPU {g['gpu'].get('gpu')}: device-to-device copy {g['d2d_bytes_per_s'] / 1e9:.0f} GB/s, "
+                   f"the floor of one float64 pass: {g['floor_ns_float64']:.4f} ns per particle")
+    elif g.get("skipped"):
+        out.append(f"GPU column skipped: {g['skipped']}")
     rounds = res.get("threads_speedup_rounds", {})
     sp = ", ".join(f"N_p={_pow10(int(n))}: {v:.2f}x" + (f" (rounds {rounds[n][0]:.2f}-{rounds[n][1]:.2f}x)"
                                                           if rounds.get(n) else "")

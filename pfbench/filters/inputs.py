@@ -6,7 +6,10 @@ import numpy as np
 from ..errors import InputError
 from ..models.base import StateSpaceModel
 
-BACKENDS = ("numpy", "numba")
+BACKENDS = ("numpy", "numba", "cupy")
+#: the backends that run :mod:`pfbench.backends.array_backend`, with their array namespace;
+#: ``xp-numpy`` is the ``cupy`` backend's code on NumPy (how the CPU tests cover it)
+ARRAY_BACKENDS = {"cupy": "cupy", "xp-numpy": "numpy"}
 DTYPES = ("float64", "float32")
 
 
@@ -35,7 +38,7 @@ def check_inputs(model, y, u):
 
 
 def check_backend(backend: str) -> str:
-    if backend not in BACKENDS:
+    if backend not in BACKENDS and backend not in ARRAY_BACKENDS:
         raise InputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     return backend
 

@@ -41,9 +41,9 @@ import numpy as np
 from .. import backends
 from ..backends.numpy_backend import BLOCK, block_streams
 from ..errors import InputError
-from ..procs import usable_cores
+from ..procs import free_cores
 from ..resampling import Scheme
-from .inputs import check_backend, check_dtype, ess_count, seed_sequence
+from .inputs import ARRAY_BACKENDS, check_backend, check_dtype, ess_count, seed_sequence
 from .methods import Estimate, Method
 from .result import FilterResult, mixture_loglik_increments, total_variance
 
@@ -80,17 +80,31 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     if method != Method.SIR and ess_threshold is not None:
         raise InputError(f"ess_threshold applies to method 'sir' only (got method {method.label!r})")
     thr = ess_count(ess_threshold, n_per)
-    rngs = streams(seed, n_filters, common_random_numbers)
-    out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
-                              resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
-                              n_threads=n_threads, store_particles=store_particles, estimate=estimate,
-                              block=_block)
+    extra = {}
+    if backend in ARRAY_BACKENDS:  # the array-namespace kernel: NumPy (xp-numpy) or a GPU (cupy)
+        if estimate == Estimate.POST.label:
+            raise InputError(f"estimate='post' is not available on backend {backend!r} (use 'pre', or "
+                             f"backend 'numpy' or 'numba')")
+        from ..backends import cupy_backend
+
+        out, elapsed, extra = cupy_backend.run_groups(
+            model, y, u, seed_sequence(seed), backend=backend, method=method, n_per=n_per,
+            n_filters=n_filters, resampling=scheme, ess_threshold=thr, dtype=dtype,
+            store_particles=store_particles)
+        n_streams = 1
+    else:
+        rngs = streams(seed, n_filters, common_random_numbers)
+        out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
+                                  resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
+                                  n_threads=n_threads, store_particles=store_particles, estimate=estimate,
+                                  block=_block)
+        n_streams = len(rngs)
     est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
-            "resampling": scheme.label, "estimate": estimate, "common_random_numbers": bool(common_random_numbers),
-            "n_streams": len(rngs)}
+            "resampling": scheme.label, "estimate": estimate,
+            "common_random_numbers": bool(common_random_numbers), "n_streams": n_streams, **extra}
     if n_per * n_filters != n_particles:
         info["n_particles_requested"] = n_particles
         info["note"] = (f"N_p = {n_particles} does not split evenly into {n_filters} sub-filters: "
@@ -147,7 +161,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     scheme = int(Scheme.parse(resampling))
     block = int(block or BLOCK)
     at = {"estimate": "post"} if Estimate.parse(estimate) == Estimate.POST else {}
-    workers = min(n_groups, n_threads or usable_cores())
+    workers = min(n_groups, n_threads or free_cores())
     pooled = n_groups > 1 and backend == "numba" and workers > 1
     # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
     inner = 1 if (pooled or n_groups > 1) else n_threads

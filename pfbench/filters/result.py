@@ -76,6 +76,31 @@ class FilterResult:
         """Wall time per particle and step in ns (per step for Kalman filters)."""
         return self.elapsed_s * 1e9 / max(1, max(self.n_particles, 1) * self.n_steps)
 
+    def first_nonfinite_step(self) -> int | None:
+        """The first step t whose log-likelihood increment is not finite (every particle had a zero,
+        NaN or infinite likelihood there, or the model diverged), None if every step is finite."""
+        bad = np.flatnonzero(~np.isfinite(np.asarray(self.loglik_increments, dtype=np.float64)))
+        return int(bad[0]) if bad.size else None
+
+    def to_dataframe(self, names=None):
+        """One row per step: ``step``, the estimate and variance of each state (``<name>`` and
+        ``<name>_var``; ``names`` default ``x0, x1, ...``), ``ess``, ``loglik_increment`` and
+        ``degenerate`` (a pandas DataFrame)."""
+        import pandas as pd
+
+        n_x = self.estimates.shape[1]
+        names = list(names) if names is not None else [f"x{i}" for i in range(n_x)]
+        if len(names) != n_x:
+            raise ValueError(f"{len(names)} names for {n_x} states")
+        cols = {"step": np.arange(self.n_steps)}
+        for i, name in enumerate(names):
+            cols[name] = self.estimates[:, i]
+            cols[f"{name}_var"] = self.variances[:, i]
+        cols["ess"] = np.asarray(self.ess, dtype=np.float64)
+        cols["loglik_increment"] = np.asarray(self.loglik_increments, dtype=np.float64)
+        cols["degenerate"] = np.asarray(self.degenerate, dtype=bool)
+        return pd.DataFrame(cols)
+
 
 def total_variance(sub_estimates: np.ndarray, sub_variances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and variance of an equal-weight mixture of N_f sub-filter posteriors.

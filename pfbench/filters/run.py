@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from .inputs import check_inputs
+from ..models.contract import check_model, named_model_errors
+from .inputs import ARRAY_BACKENDS, check_inputs
 from .methods import Estimate, Method
 from .result import FilterResult
 
@@ -42,11 +43,15 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     resampling : a :class:`~pfbench.resampling.Scheme` name.
     ess_threshold : SIR and guided: resample when N_eff < ess_threshold * N_p; a fraction in
         (0, 1], default 0.5 (as in the ``particles`` library).
-    backend : ``numpy`` (reference) or ``numba`` (compiled; first call compiles, then cached).
+    backend : ``numpy`` (reference), ``numba`` (compiled; first call compiles, then cached) or
+        ``cupy`` (bootstrap, SIR, SIS, MultiPDF on a GPU; systematic or stratified resampling; its
+        own counter-based random numbers, see :mod:`pfbench.backends.array_backend`;
+        ``xp-numpy`` runs the same code on NumPy).
     dtype : particle storage precision, ``float64`` or ``float32``.
     seed : int or ``numpy.random.SeedSequence``.
     common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
-    n_threads : numba threads (default None: all cores; 1: sequential). One filter with more than
+    n_threads : numba threads (default None: the cores free now, :func:`pfbench.procs.free_cores`,
+        so a busy machine gets fewer threads instead of a collapse; 1: sequential). One filter with more than
         one stream block (N_p > :data:`pfbench.backends.numpy_backend.BLOCK`) runs its particle
         loops on them; MultiPDF without common random numbers runs its sub-filters in parallel
         instead (each on one thread). Results never depend on it.
@@ -62,7 +67,8 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         not resample (SIR with N_eff >= the threshold, SIS always, ASIR always: its resampling comes
         before the step's propagation) ``post`` is ``pre``. Resampling is unbiased, so ``post`` is
         ``pre`` plus zero-mean resampling noise: same random numbers, same ``loglik``, ``ess`` and
-        trajectory. Particle methods only: ``post`` with mpf, guided or kalman is an InputError.
+        trajectory. Particle methods only: ``post`` with mpf, guided or kalman is an InputError,
+        as is ``post`` on the array backends (``cupy``, ``xp-numpy``).
     """
     m = Method.parse(method)
     est_at = Estimate.parse(estimate)
@@ -77,32 +83,37 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     n_particles = _count(n_particles, "n_particles")
     n_filters = _count(n_filters, "n_filters")
     y, u = check_inputs(model, y, u)
+    check_model(model, y, u)   # a mistake in the model's code is one line naming it, on every backend
     from ..resources import check_filter_memory  # refuse before allocating what cannot fit
 
     check_filter_memory(model, m.label, n_particles, n_filters=n_filters, n_steps=y.shape[0], dtype=dtype,
                         backend=backend, store_particles=store_particles, flag="n_particles")
-    if m.family == "particle":
-        from .particle import run_particle
+    with named_model_errors(model, y, u, backend):
+        if m.family == "particle":
+            from .particle import run_particle
 
-        return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
-                            resampling=resampling, ess_threshold=ess_threshold, backend=backend,
-                            dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
-                            n_threads=n_threads, store_particles=store_particles, estimate=est_at.label,
-                            _block=_block)
-    if n_filters != 1:
-        raise InputError(f"n_filters={n_filters} needs method='multipdf'")
-    if store_particles:
-        raise InputError(f"store_particles is available for the particle methods, not {m.label!r}")
-    if m.family == "mpf":
-        from .marginalized import run_mpf
+            return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
+                                resampling=resampling, ess_threshold=ess_threshold, backend=backend,
+                                dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
+                                n_threads=n_threads, store_particles=store_particles, estimate=est_at.label,
+                                _block=_block)
+        if n_filters != 1:
+            raise InputError(f"n_filters={n_filters} needs method='multipdf'")
+        if backend in ARRAY_BACKENDS:
+            raise InputError(f"backend {backend!r} runs the particle methods bootstrap, sir, sis and "
+                             f"multipdf, not {m.label!r}")
+        if store_particles:
+            raise InputError(f"store_particles is available for the particle methods, not {m.label!r}")
+        if m.family == "mpf":
+            from .marginalized import run_mpf
 
-        return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
-                       seed=seed, dtype=dtype, ess_threshold=ess_threshold)
-    if m.family == "kalman":
-        from .marginalized import run_kalman
+            return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
+                           seed=seed, dtype=dtype, ess_threshold=ess_threshold)
+        if m.family == "kalman":
+            from .marginalized import run_kalman
 
-        return run_kalman(model, y, u, backend=backend)
-    from .guided import run_guided
+            return run_kalman(model, y, u, backend=backend)
+        from .guided import run_guided
 
-    return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
-                      ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed)
+        return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
+                          ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed)

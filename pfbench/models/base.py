@@ -254,6 +254,9 @@ class StateSpaceModel:
         p = self.params()
         u = self.inputs(rng, n_steps)
         u_arr = self.input_array(u, n_steps)
+        from .contract import check_model   # the contract first: a mistake reads as one line
+
+        check_model(self, np.zeros((1, self.n_y)), u_arr[:1])
         x = np.asarray(self.initial(rng, 1, p), dtype=np.float64).reshape(1, self.n_x)
         x0 = x[0].copy()
         xs = np.empty((n_steps, self.n_x))

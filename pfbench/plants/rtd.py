@@ -226,6 +226,40 @@ def simulate_fig5(n: int = 600, Qu: float = 2.3, R: float = 1.0, u: float = U_ST
             "errcov": ex["errcov"][:, 0, 0], "gain": ex["gains"][:, 0, 0], "model": m, "Qx": Qx}
 
 
+def fig5_runs(n: int = 600, Qu: float = 2.3, R: float = 1.0, seeds=(0,), u: float = U_STEP,
+              model: DiscreteModel | None = None) -> dict:
+    """:func:`simulate_fig5` for many seeds at once (same noise draws per seed, so each row equals
+    that seed's run): the filter's gains do not depend on the data, so they are computed once and
+    the runs advance together. Returns t, y_true (runs, n), yest (runs, n) and errcov (n,)."""
+    m = identified_model() if model is None else model
+    seeds = list(seeds)
+    W, V = np.empty((len(seeds), n)), np.empty((len(seeds), n))
+    for i, s in enumerate(seeds):
+        rng = np.random.default_rng(s)
+        W[i] = np.sqrt(Qu) * rng.standard_normal(n)
+        V[i] = np.sqrt(R) * rng.standard_normal(n)
+    A, b, c = m.A, m.B[:, 0], m.C[0]
+    Qx = Qu * (m.B @ m.B.T)
+    P = Qx.copy()                                   # the chapter's Ptv = B*Q*B'
+    gains, errcov = np.empty((n, A.shape[0])), np.empty(n)
+    for k in range(n):
+        Mk = P @ c / (c @ P @ c + R)
+        P = P - np.outer(Mk, c @ P)
+        P = 0.5 * (P + P.T)
+        gains[k], errcov[k] = Mk, c @ P @ c
+        P = A @ P @ A.T + Qx
+        P = 0.5 * (P + P.T)
+    x = np.zeros((len(seeds), A.shape[0])); xh = np.zeros_like(x)
+    y_true, yest = np.empty((len(seeds), n)), np.empty((len(seeds), n))
+    for k in range(n):
+        y_true[:, k] = x @ c
+        x = x @ A.T + np.outer(u + W[:, k], b)
+        xh = xh + np.outer(y_true[:, k] + V[:, k] - xh @ c, gains[k])
+        yest[:, k] = xh @ c
+        xh = xh @ A.T + u * b
+    return {"t": np.arange(n) * m.Ts, "y_true": y_true, "yest": yest, "errcov": errcov}
+
+
 def bath_profile(T_low: float = 25.0, T_high: float = 38.0, t_hold: float = 60.0, Ts: float = TS):
     """Thermal-bath input: T_low for 5 s, step up to T_high for t_hold, step down to T_low for t_hold."""
     n0, n1 = int(round(5.0 / Ts)), int(round(t_hold / Ts))
@@ -287,6 +321,91 @@ def envelope_fraction(y_ref, p1, p2, mask=None) -> float:
     if mask is not None:
         inside = inside[np.asarray(mask, dtype=bool)]
     return float(inside.mean()) if inside.size else float("nan")
+
+
+def predictor_trace(y, u, rc: DiscreteModel, ratio: float) -> np.ndarray:
+    """The one-step steady-state Kalman predictor of :func:`boundary_layer` for the ratio
+    ``ratio`` = Q/R (a scalar filter's gain depends on Q/R only), as a first-order linear recursion
+    (``scipy.signal.lfilter``): ``x[k+1] = a (1 - M c) x[k] + a M y[k] + b u[k]``, ``M`` the DARE gain.
+    Aligned like :class:`BoundaryLayer` (element k is c x[k|k-1]; element 0 is y[0])."""
+    from scipy.signal import lfilter
+
+    from ..filters.dare import dare_scalar
+
+    y = np.asarray(y, dtype=np.float64).ravel()
+    u = np.asarray(u, dtype=np.float64).ravel()
+    a, b, c = float(rc.A[0, 0]), float(rc.B[0, 0]), float(rc.C[0, 0])
+    if not np.isfinite(ratio) or ratio <= 0:
+        raise InputError(f"predictor_trace: the ratio Q/R must be positive, got {ratio}")
+    P = dare_scalar(a, c, float(ratio) * b * b, 1.0)
+    M = P * c / (c * c * P + 1.0)
+    alpha = a * (1.0 - M * c)
+    x0 = y[0] / c
+    z = lfilter([1.0], [1.0, -alpha], a * M * y + b * u, zi=[alpha * x0])[0]
+    return c * np.concatenate([[x0], z[:-1]])
+
+
+def kf_trace(y, u, rc: DiscreteModel, ratio: float) -> np.ndarray:
+    """The time-varying KF estimate C x[n|n] of :func:`boundary_layer` (Q = ratio R through B,
+    P0 = B Q B as the chapter's code) as a scalar loop: the first-order filter's gain depends on Q/R
+    only, so R = 1."""
+    y = np.asarray(y, dtype=np.float64).ravel()
+    u = np.asarray(u, dtype=np.float64).ravel()
+    a, b, c = float(rc.A[0, 0]), float(rc.B[0, 0]), float(rc.C[0, 0])
+    if not np.isfinite(ratio) or ratio <= 0:
+        raise InputError(f"kf_trace: the ratio Q/R must be positive, got {ratio}")
+    q = float(ratio) * b * b
+    x, P = y[0] / c, q
+    out = np.empty(y.size)
+    for k in range(y.size):
+        M = P * c / (c * c * P + 1.0)
+        x = x + M * (y[k] - c * x)
+        P = (1.0 - M * c) * P
+        out[k] = c * x
+        x = a * x + b * u[k]
+        P = a * a * P + q
+    return out
+
+
+#: Q/R ratios the calibration of the two predictors chooses from (log grid, 10^-4 .. 10^6)
+CALIBRATION_RATIOS = tuple(float(v) for v in np.logspace(-4, 6, 21))
+
+
+@dataclass
+class Calibration:
+    """The two predictors' Q/R ratios chosen by :func:`calibrate_predictors`."""
+
+    ratio_a: float      # the larger Q/R (follows the readings)
+    ratio_b: float      # the smaller Q/R (follows the RC model)
+    fraction: float     # fraction of the calibration samples inside the layer
+    width: float        # mean width of the layer over those samples
+
+
+def calibrate_predictors(y, u, rc: DiscreteModel, y_ref, mask, ratios=CALIBRATION_RATIOS) -> Calibration:
+    """Calibrate the two predictors first ([RTD] §8: "the system needs to be calibrated first in
+    order to have the two Kalman filters enveloping the required solution"; §6, Fig. 6: two filters
+    "with different Q and R to calibrate the desired response"): over every pair of ``ratios``
+    (Q/R of predictor A > that of predictor B), the pair whose layer holds ``y_ref`` for the largest
+    fraction of the ``mask`` samples, the narrowest layer among equals (so the calibration does not
+    simply take the two extremes)."""
+    mask = np.asarray(mask, dtype=bool)
+    if mask.sum() < 2:
+        raise InputError("calibrate_predictors: fewer than 2 calibration samples")
+    ratios = sorted(float(r) for r in ratios)
+    if len(ratios) < 2:
+        raise InputError("calibrate_predictors: need at least two Q/R ratios")
+    ref = np.asarray(y_ref, dtype=np.float64).ravel()[mask]
+    tr = [predictor_trace(y, u, rc, r)[mask] for r in ratios]
+    best = None
+    for i in range(len(ratios)):
+        for j in range(i):
+            lo, hi = np.minimum(tr[i], tr[j]), np.maximum(tr[i], tr[j])
+            frac = float(np.mean((ref >= lo) & (ref <= hi)))
+            width = float(np.mean(hi - lo))
+            key = (-frac, width)
+            if best is None or key < best[0]:
+                best = (key, Calibration(ratios[i], ratios[j], frac, width))
+    return best[1]
 
 
 # ----------------------------------------------------------------------------- data logs

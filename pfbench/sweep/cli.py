@@ -71,7 +71,7 @@ _OPTIONS = [
                  help=f"One or a comma-separated list of: {', '.join(METHODS)} (default multipdf)."),
     click.option("--runs", type=int, default=None, help="Monte Carlo runs per configuration."),
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
-    click.option("--backend", default=None, help="numba (default) or numpy."),
+    click.option("--backend", default=None, help="numba (default), numpy or cupy (a GPU)."),
     click.option("--estimate", type=click.Choice(ESTIMATES), default=None,
                  help="Point estimate of a step: pre (default; weighted, before resampling) or post "
                       "(the resampled particles, [MultiPDF] Alg. 1-2) for the particle methods; mpf, "

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..filters.inputs import check_backend
-from ..filters.methods import METHODS, Method
+from ..filters.methods import METHODS, Estimate, Method
 
 #: the method's part of a filter seed's spawn key. Never change an entry: it would change every
 #: stored sweep's numbers. New methods take new numbers.
@@ -61,7 +61,6 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     numbers (paired); a spec without ``estimate`` (an older store) means ``pre``.
     """
     from .. import models
-    from ..filters.methods import Estimate
     from ..resampling import Scheme
 
     model, params = models.parse_spec(model, params)
@@ -91,8 +90,20 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or int(seed) < 0:
         raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
-    resampling = Scheme.parse(resampling).label
     estimate = Estimate.parse(estimate).label
+    from ..filters.inputs import ARRAY_BACKENDS
+
+    if backend in ARRAY_BACKENDS:  # before any work: the methods it runs, and a GPU for cupy
+        from ..backends import array_backend, cupy_backend
+
+        for m, _, _ in out:
+            array_backend.check_supported(Method.parse(m), Scheme.parse(resampling), backend)
+        if estimate == Estimate.POST.label:
+            raise InputError(f"--estimate post is not available on backend {backend!r} (use pre, or "
+                             f"backend numpy or numba)")
+        if backend == "cupy":
+            cupy_backend.import_cupy()
+    resampling = Scheme.parse(resampling).label
     spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
             "runs": int(runs), "steps": int(steps), "seed": int(seed), "backend": backend,
             "resampling": resampling, "estimate": estimate, "code": code_fingerprint(model)}
@@ -173,12 +184,24 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
+    from ..filters.inputs import ARRAY_BACKENDS
+
     m = Method.parse(method)
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
-    out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
-                        n_filters=n_filters, resampling=resampling,
-                        ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1,
-                        estimate=estimate)
+    if backend in ARRAY_BACKENDS:  # cupy: the array-namespace kernel, its own Philox draws
+        if Estimate.parse(estimate) == Estimate.POST:
+            raise InputError(f"estimate='post' is not available on backend {backend!r}")
+        from ..backends.cupy_backend import run_groups as run_array
+        from ..filters.inputs import seed_sequence
+
+        out, _, _ = run_array(model, y, u, seed_sequence(seed), backend=backend, method=m, n_per=n_per,
+                              n_filters=n_filters, resampling=resampling,
+                              ess_threshold=ess_count(None, n_per), dtype="float64")
+    else:
+        out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
+                            n_filters=n_filters, resampling=resampling,
+                            ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1,
+                            estimate=estimate)
     est = out["est"]
     return est.mean(axis=0), est
 

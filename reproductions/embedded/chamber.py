@@ -25,7 +25,9 @@ from pfbench.filters import run_filter
 from pfbench.models import get as get_model
 from pfbench.models.thermal import _mode_inputs
 from pfbench.recipes import recipe
-from pfbench.verdicts import direction, holds, not_reproducible
+from pfbench import plotting
+from pfbench.verdicts import (CONSTRUCTION, Reading, direction, holds, in_band, no_dependence,
+                              not_reproducible)
 
 VAR_V, VAR_N = 0.010, 0.005          # Table A2 setting (figs 6-10)
 FIG_RUNS = {  # fig: (paper test, N_p, ambient degC); ambient from §5.2 (fig 6: ~19.3, figs 7-8: ~19.6)
@@ -128,16 +130,6 @@ def _per_seed(acc: dict, m: str, key: str) -> np.ndarray:
     return np.array([a[key] for a in acc[m]], dtype=float)
 
 
-def _m2_beats_m1(ctx, acc: dict, test: str, n_p: int, key: str = "rms_eps") -> None:
-    """[Embedded] §5.2 / Fig. 9: model (12) has the lower estimation error (13) than model (10)."""
-    d = _per_seed(acc, "m1", key) - _per_seed(acc, "m2", key)
-    what = "eq. 13 error vs the measurement" if key == "rms_eps" else "error vs the true sensor temperature"
-    ctx.claim(f"{test} (N_p = {n_p}): model (12) estimates with a lower error than model (10) "
-              "(\"reduced errors for the y_m2 chart\")", "[Embedded] §5.2, Fig. 9",
-              f"RMS {what}: m1 - m2, per PF seed (one plant run)",
-              direction(d, +1, what="RMS m1 - RMS m2"), paper="> 0 (m2 lower)")
-
-
 def _series(cols, est) -> pd.DataFrame:
     return pd.DataFrame({"time_s": cols["time_s"], "y": cols["y"], "u1": cols["u1"], "u2": cols["u2"],
                          "t_out": cols["t_out"], "mode": _mode_inputs(cols)[:, 2],
@@ -146,20 +138,17 @@ def _series(cols, est) -> pd.DataFrame:
 
 def _figure(df: pd.DataFrame, title: str):
     """Paper layout: temperatures (measured red, y_hat_m1 blue, y_hat_m2 black, outdoor gray) over
-    inputs u1, u2; an inset zooms on the mode switch (the paper's rectangles)."""
-    import matplotlib.pyplot as plt
-
-    fig, (ax, axu) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    inputs u1, u2; an inset zooms on the first mode switch (the paper's rectangles). The paper's
+    figures are plots of its own measured runs: there is no published curve to draw beside ours."""
+    fig, (ax, axu) = plotting.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     t = df["time_s"].to_numpy()
-    ax.step(t, df["y"], where="post", color="red", lw=1.0, label="measured y")
+    ax.step(t, df["y"], where="post", color="red", lw=1.0, label="measured y (simulated DS18B20)")
     ax.plot(t, df["y_hat_m1"], color="blue", lw=1.0, label=r"$\hat y_{m1}$ (eq. 10)")
     ax.plot(t, df["y_hat_m2"], color="black", lw=1.0, label=r"$\hat y_{m2}$ (eq. 12)")
     if np.any(np.isfinite(df["t_out"])):
         ax.step(t, df["t_out"], where="post", color="gray", lw=1.0, label="outdoor")
-    ax.set_ylabel("temperature [°C]")
-    ax.set_title(title, fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", fontsize=8)
+    plotting.label(ax, "time [s]", "temperature [°C]", title)
+    ax.legend(loc="upper left")
     mode = df["mode"].to_numpy()
     sw = np.flatnonzero(np.diff(mode) != 0)
     if sw.size:
@@ -171,15 +160,13 @@ def _figure(df: pd.DataFrame, title: str):
         ins.plot(t[sl], df["y_hat_m1"].to_numpy()[sl], color="blue", lw=0.8)
         ins.plot(t[sl], df["y_hat_m2"].to_numpy()[sl], color="black", lw=0.8)
         ins.tick_params(labelsize=6)
+        ins.set_title("zoom: first mode switch (time [s], °C)", fontsize=6)
         ax.indicate_inset_zoom(ins, edgecolor="0.4")
-    axu.plot(t, df["u1"], color="tab:orange", label="u1 heater [%]")
-    axu.plot(t, df["u2"], color="tab:green", label="u2 fan [%]")
+    axu.plot(t, df["u1"], color="tab:orange", label="u1 heater")
+    axu.plot(t, df["u2"], color="tab:green", label="u2 fan")
     axu.set_ylim(-5, 105)
-    axu.set_xlabel("time [s]")
-    axu.set_ylabel("input [%]")
-    axu.grid(alpha=0.3)
-    axu.legend(loc="center right", fontsize=8)
-    fig.tight_layout()
+    plotting.label(axu, "time [s]", "input [% PWM]")
+    axu.legend(loc="center right")
     return fig
 
 
@@ -187,6 +174,13 @@ def _heating_time(cols) -> float | None:
     info = cols.get("info") or {}
     k = info.get("k_switch")
     return None if k is None else float(cols["time_s"][k])
+
+
+#: the mixing-bump sentence of [Embedded] §5.2, scored once (in fig6; fig7/fig8 show their bump as a comparison)
+BUMP_CLAIM = ("When u2 jumps to 100 % and u1 to 0 %, the air mixing causes a sudden increase of the air "
+              "temperature around the thermometer")
+#: half a DS18B20 step: the rounding error the quantised measurement itself carries (±0.031 °C)
+HALF_STEP = chamber.RESOLUTION / 2
 
 
 def _heating_cooling_fig(ctx, fig: str) -> None:
@@ -204,9 +198,7 @@ def _heating_cooling_fig(ctx, fig: str) -> None:
         if np.isfinite(v["rms_true"]):
             ctx.compare(f"{test} N_p={n_p}: RMS error {m} vs true sensor temperature", ours=v["rms_true"], unit="°C")
     ctx.extra["per_seed"] = acc
-    # fig9 records the claim on the paper's eq. 13 errors; here, on a simulation, the same claim against the
-    # true sensor temperature (which model estimates the temperature better), on a log the eq. 13 version
-    _m2_beats_m1(ctx, acc, test, n_p, key="rms_true" if np.all(np.isfinite(cols["truth"])) else "rms_eps")
+    # the Fig. 9 sentence ("reduced errors for the y_m2 chart") is scored once, in fig9, with its readings
     ht = _heating_time(cols)
     if ht is not None:
         ctx.compare(f"{test}: heating time to 22.5 °C (room {ambient} °C)", ours=ht, unit="s",
@@ -218,15 +210,14 @@ def _heating_cooling_fig(ctx, fig: str) -> None:
         ctx.compare(f"{test}: rise after the fan jumps to 100 % (mixing bump), air / sensor / measured",
                     ours=f"{bump['air']:.4f} / {bump['sensor']:.4f} / {bump['measured']:.4f}", unit="°C",
                     paper="sudden increase around the thermometer at the start of cooling (§5.2)")
-        ctx.claim("When u2 jumps to 100 % and u1 to 0 %, the air mixing causes a sudden increase of the air "
-                  "temperature around the thermometer", "[Embedded] §5.2", "rise of y after the switch (60 s)",
-                  not_reproducible("a property of the authors' chamber airflow, which the paper does not describe; "
-                                   f"our plant's bump at the sensor ({bump['sensor']:.3f} °C) is below the "
-                                   f"{chamber.RESOLUTION} °C sensor step (see pfbench.plants.chamber)"),
-                  paper="a visible rise")
-    elif ctx.data:
-        ctx.claim("When u2 jumps to 100 % and u1 to 0 %, the air mixing causes a sudden increase of the air "
-                  "temperature around the thermometer", "[Embedded] §5.2", "rise of y after the switch",
+        if fig == "fig6":
+            ctx.claim(BUMP_CLAIM, "[Embedded] §5.2", "rise of y after the switch (60 s)",
+                      not_reproducible("a property of the authors' chamber airflow, which the paper does not describe; "
+                                       f"our plant's bump at the sensor ({bump['sensor']:.3f} °C) is below the "
+                                       f"{chamber.RESOLUTION} °C sensor step (see pfbench.plants.chamber)"),
+                      paper="a visible rise")
+    elif ctx.data and fig == "fig6":
+        ctx.claim(BUMP_CLAIM, "[Embedded] §5.2", "rise of y after the switch",
                   not_reproducible("a user log carries no switch marker this recipe can trust"))
     ctx.extra["metrics"] = mean
 
@@ -244,12 +235,16 @@ def fig6(ctx):
         t6 = ctx.extra["heating_time_s"]
         t7 = _heating_time(_experiment(ctx, "heating_cooling", FIG_RUNS["fig7"][0], 22.5))
         ctx.extra["heating_time_fig7_s"] = t7
-        ctx.claim(claim, "[Embedded] §5.2, Figs. 6-8", "heating time to 22.5 °C: fig6 (room 19.3) - fig7 (room 19.6)",
-                  holds(t6 > t7, f"simulated plant runs: {t6:.0f} s at 19.3 °C vs {t7:.0f} s at 19.6 °C; "
-                                 "agree if the first is longer"), paper="fig6 longer")
-        ctx.note("Fig. 6 vs Figs. 7-8: the paper attributes Fig. 6's longer heating to the lower room temperature "
-                 "(19.3 vs 19.6 °C); in our plant the time to 22.5 °C is longer at 19.3 °C simply because the "
-                 "required rise is larger (see the heating times of fig6/fig7).")
+        ctx.compare("heating time to 22.5 °C: fig6 (room 19.3 °C) / fig7 (room 19.6 °C)", ours=f"{t6:.0f} / {t7:.0f}",
+                    unit="s", paper="fig6 longer")
+        ctx.claim(claim, "[Embedded] §5.2, Figs. 6-8", "heating time to 22.5 °C: fig6 (room 19.3) vs fig7 (room 19.6)",
+                  holds(t6 > t7, f"simulated plant: {t6:.0f} s at 19.3 °C vs {t7:.0f} s at 19.6 °C; the first "
+                                 "longer"), paper="fig6 longer",
+                  kind=CONSTRUCTION,
+                  note=(f"fixed by the simulated plant ({t6:.0f} s at 19.3 °C vs {t7:.0f} s at 19.6 °C): starting "
+                        "0.3 °C colder, any plant with the same heating dynamics needs longer to reach 22.5 °C; the "
+                        "paper's explanation (a larger time constant at the lower room temperature) concerns its "
+                        "chamber, which we do not have"))
 
 
 @recipe("embedded:fig7", aliases=("fig7",), title="Heating/cooling, N_p = 500 (Fig. 7, test B2-1)",
@@ -264,17 +259,25 @@ def fig8(ctx):
     _heating_cooling_fig(ctx, "fig8")
 
 
+#: the Fig. 9 sentence of [Embedded] §5.2, scored once (here)
+FIG9_CLAIM = ("One can confirm the conclusions drawn regarding the reduced errors for the y_m2 chart "
+              "(see Figure 9)")
+FIG9_PRIMARY = ("model (12) keeps its eq. 13 error when N_p is reduced (1000 -> 100): the 'conclusions drawn' "
+                "are those of the paragraph before ('For Equation (12), the estimation also works correctly when "
+                "the number of particles is reduced'), and the same paragraph says model (10) 'primarily follows "
+                "the measured signal' while (12) 'increases slowly', so (12) having the lower eq. 13 error would "
+                "contradict the paper's own text")
+
+
 @recipe("embedded:fig9", aliases=("fig9",), title="Estimation errors eps(k) of B1, B2-1, B3-1 (Fig. 9)",
         quick_cost="~30 s", full_cost="~2 min", options=OPTIONS, reads_data=True)
 def fig9(ctx):
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=False)
-    frames, rows = [], []
+    fig, axes = plotting.subplots(3, 1, figsize=(8, 7.5), sharex=False)
+    frames, rows, accs, logs = [], [], {}, {}
     for ax, (name, (test, n_p, _amb)) in zip(axes, FIG_RUNS.items()):
         cols = _experiment(ctx, "heating_cooling", test, 22.5)
         mean, est, acc = _metrics(ctx, cols, n_p)
-        _m2_beats_m1(ctx, acc, test, n_p)
+        accs[test], logs[test] = acc, cols
         t = cols["time_s"]
         e1, e2 = cols["y"] - est["m1"], cols["y"] - est["m2"]
         frames.append(pd.DataFrame({"test": test, "n_particles": n_p, "time_s": t, "eps_m1": e1, "eps_m2": e2}))
@@ -282,24 +285,62 @@ def fig9(ctx):
             rows.append({"test": test, "n_particles": n_p, "model": m, **mean[m]})
         ax.plot(t, e1, color="red", lw=0.8, label="model (10)")
         ax.plot(t, e2, color="blue", lw=0.8, label="model (12)")
-        ax.set_title(f"{test} (N_p = {n_p})", fontsize=9)
-        ax.set_ylabel(r"$\epsilon(k)$ [°C]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right")
-    axes[-1].set_xlabel("time [s]")
-    fig.tight_layout()
+        ax.axhspan(-HALF_STEP, HALF_STEP, color="0.85", zorder=0, label="± half a sensor step (0.031 °C)")
+        plotting.label(ax, "time [s]", r"$\epsilon(k) = y - \hat y$ [°C]", f"{test} (N_p = {n_p}), first PF seed")
+        ax.legend(loc="lower left", ncol=3, fontsize=7)
+    fig.suptitle("Fig. 9: eq. 13 errors of models (10) and (12) on our runs (the paper's own runs are not published)")
     ctx.write_table("fig9", pd.concat(frames, ignore_index=True))
     err = pd.DataFrame(rows)
-    ctx.write_table("fig9_errors", err)
     ctx.write_figure("fig9", fig)
     for test, g in err.groupby("test", sort=False):
         r1 = float(g.loc[g.model == "m1", "rms_eps"].iloc[0])
         r2 = float(g.loc[g.model == "m2", "rms_eps"].iloc[0])
-        ctx.compare(f"{test}: RMS eps m1 / m2", ours=f"{r1:.4f} / {r2:.4f}", unit="°C", paper="m2 lower (Fig. 9)")
+        ctx.compare(f"{test}: RMS eps m1 / m2", ours=f"{r1:.4f} / {r2:.4f}", unit="°C",
+                    paper="not tabulated (Fig. 9 plots eps)")
+    # primary reading: model (12) on ONE log (B-1) at N_p = 1000 and at N_p = 100, paired by PF seed
+    b1 = logs["B-1"]
+    small = {"rms_eps": [], "rms_true": []}
+    for s in range(_n_seeds(ctx)):
+        e = _estimate(ctx, b1, 100, seed=int(ctx.seed) * 1000 + s, which=("m2",))["m2"]
+        d = _errors(b1, e)
+        for k in small:
+            small[k].append(d[k])
+    m2_1000 = _per_seed(accs["B-1"], "m2", "rms_eps")
+    m2_100 = np.asarray(small["rms_eps"])
+    rows.append({"test": "B-1 log at N_p = 100", "n_particles": 100, "model": "m2",
+                 "rms_eps": float(m2_100.mean()), "rms_true": float(np.mean(small["rms_true"]))})
+    ctx.write_table("fig9_errors", pd.DataFrame(rows))
+    ctx.compare("model (12) on the B-1 log: RMS eps at N_p = 1000 / 100", ours=f"{m2_1000.mean():.4f} / "
+                f"{m2_100.mean():.4f}", unit="°C", paper="works correctly when N_p is reduced (§5.2)")
+    margin = HALF_STEP
+    primary = no_dependence(m2_100 - m2_1000, margin, what="RMS eps of (12), N_p = 100 - N_p = 1000 (same log)")
+    others = [
+        Reading("the paper's literal comparison across its experiments: (12) in B3-1 (N_p = 100) vs B-1 (N_p = 1000), "
+                "two different runs", "RMS eps of (12), B3-1 - B-1, per PF seed",
+                no_dependence(_per_seed(accs["B3-1"], "m2", "rms_eps") - m2_1000, margin,
+                              what="RMS eps of (12), B3-1 - B-1")),
+    ]
+    pooled = {k: np.mean([_per_seed(accs[t], "m1", k) - _per_seed(accs[t], "m2", k) for t in accs], axis=0)
+              for k in ("rms_eps", "rms_true")}
+    others.append(Reading("model (12) has the lower eq. 13 error than model (10) (contradicts the paper's own text: "
+                          "(10) 'primarily follows the measured signal')",
+                          "RMS eps m1 - m2, mean over B-1/B2-1/B3-1, per PF seed",
+                          direction(pooled["rms_eps"], +1, what="RMS eps m1 - m2")))
+    if np.all(np.isfinite(pooled["rms_true"])):
+        others.append(Reading("model (12) has the lower error against the true (unquantised) sensor temperature "
+                              "(simulation only)", "RMS error vs truth m1 - m2, mean over the three runs, per PF seed",
+                              direction(pooled["rms_true"], +1, what="RMS true error m1 - m2")))
+    ctx.claim(FIG9_CLAIM, "[Embedded] §5.2, Fig. 9",
+              "RMS eq. 13 error of model (12) at N_p = 100 minus at N_p = 1000, same log, per PF seed [°C]",
+              primary, paper="no growth (within ±half a sensor step)", reading=FIG9_PRIMARY, others=others,
+              note=f"equivalence margin ±{margin:.4g} °C: the quantised measurement y itself carries up to half a "
+                   "DS18B20 step of rounding error, so a smaller change of eps cannot be told on the paper's plots")
     ctx.extra["errors"] = rows
     ctx.note("Fig. 9: with the Table A2 setting (sigma_v^2 = 0.010 on both states of eq. 10) model (10) is nearly a "
              "copy of the measurement, so its eq. 13 error is the smaller one, while model (12) (sigma_v1^2 = 1e-6) is "
-             "smooth and lags when the mode switches (see the claims for the ranking our runs give).")
+             "smooth and lags when the mode switches; this is what the paper's text says of the two models, so the "
+             "Fig. 9 sentence is scored as the paper's preceding conclusion (model (12) keeps working with fewer "
+             "particles) and the 'lower error' readings are shown beneath it.")
 
 
 @recipe("embedded:fig10", aliases=("fig10",), title="Heating/normal two-position control, N_p = 1000 (Fig. 10)",
@@ -322,14 +363,23 @@ def fig10(ctx):
     ctx.write_table("fig10_errors", pd.DataFrame([{"model": m, **v} for m, v in mean.items()]))
     ctx.claim("Switching between models takes place more often than in the heating/cooling test (one switch)",
               "[Embedded] §5.3, Fig. 10", "mode switches in the run",
-              holds(n_sw > 1, f"{n_sw} mode switches in the log; agree if more than the heating/cooling test's 1"),
-              paper="> 1")
-    for m, label in (("m1", "model (10)"), ("m2", "model (12)")):
-        r = _per_seed(acc, m, "rms_eps")
-        ctx.claim(f"The estimate accurately tracks the measurement signal despite the frequent switching ({label})",
-                  "[Embedded] §5.3, Fig. 10", f"RMS eq. 13 error of {label} minus one sensor step (0.0625 °C), per PF seed",
-                  direction(r - chamber.RESOLUTION, -1, what="RMS eps - 0.0625 °C"),
-                  paper="< one sensor step (our reading of 'accurate')")
+              holds(n_sw > 1, f"{n_sw} mode switches in the log; more than the heating/cooling test's 1"),
+              paper="> 1", kind=CONSTRUCTION,
+              note="the heating/cooling scenario switches once by definition, and two-position control with "
+                   "hysteresis switches at every crossing of the band, whatever the filter: the count is set by "
+                   "the (simulated) plant and the controller, not tested by the PF")
+    r1, r2 = _per_seed(acc, "m1", "rms_eps"), _per_seed(acc, "m2", "rms_eps")
+    why = f"one DS18B20 step ({chamber.RESOLUTION} °C), the measurement accuracy the paper states (§3)"
+    ctx.claim("The estimate accurately tracks the measurement signal despite the frequent switching",
+              "[Embedded] §5.3, Fig. 10", "RMS eq. 13 error of the worse of models (10) and (12), per PF seed [°C]",
+              in_band(np.maximum(r1, r2), 0.0, chamber.RESOLUTION, what="RMS eps (worse model)", why=why),
+              paper="< one sensor step (our reading of 'accurate')",
+              reading="both estimates that Fig. 10 plots track the measurement (the worse of the two decides): the "
+                      "sentence speaks of 'the estimate' and the figure shows both",
+              others=[Reading("model (10) only", "RMS eps of model (10), per PF seed",
+                              in_band(r1, 0.0, chamber.RESOLUTION, what="RMS eps (10)", why=why)),
+                      Reading("model (12) only", "RMS eps of model (12), per PF seed",
+                              in_band(r2, 0.0, chamber.RESOLUTION, what="RMS eps (12)", why=why))])
     ctx.extra["metrics"] = mean
     ctx.extra["mode_switches"] = n_sw
 
@@ -390,57 +440,78 @@ def _grid_claims(ctx, df: pd.DataFrame, seeds: dict) -> None:
     """Table A1 claims of [Embedded] §6 (variances), decided from per-PF-seed errors."""
     a1 = df[df.table == "A1"]
     metric = _metric(df)
+    other = "rms_true" if metric == "rms_true" else None   # the truth exists only in simulation
     good = a1[~a1.test.str.endswith(("-5", "-6"))]
     bad = a1[a1.test.str.endswith(("-5", "-6"))]
-    worst_good = float(good[metric].max())
     for _, r in bad.iterrows():
-        ctx.compare(f"{r.test} (σv²={r.var_v}, σn²={r.var_n}): RMS error ({metric})", ours=float(r[metric]),
-                    unit="°C", paper="worse than A-1..A-4 (§6, Fig. A1)", note=f"worst of tests 1-4: {worst_good:.4f}")
-    for _, r in bad.iterrows():
-        ctx.compare(f"{r.test}: RMS eps (vs measurement)", ours=float(r.rms_eps), unit="°C",
-                    paper="worse than A-1..A-4", note=f"best of 1-4: {float(good.rms_eps.min()):.4f}")
-    worst_good_seed = np.max([seeds[t][metric] for t in good.test], axis=0)
-    for test, what, where in (("A-5", "σv² too high (σv² = 1.0): particles cannot match the measurements",
-                               "[Embedded] §6"),
-                              ("A-6", "σn² too high (σn² = 1.0): confidence in the measurement is lost",
-                               "[Embedded] §6")):
-        if test in seeds:
-            ctx.claim(f"{what}; worse than every setting of tests 1-4", where + ", Table A1, Fig. A1",
-                      f"RMS error ({metric}) of {test} minus the worst of A/B/C-1..4, per PF seed",
-                      direction(seeds[test][metric] - worst_good_seed, +1, what=f"{test} - worst of tests 1-4"),
-                      paper="> 0")
+        ctx.compare(f"{r.test} (σv²={r.var_v}, σn²={r.var_n}): RMS eps (eq. 13, vs measurement)", ours=float(r.rms_eps),
+                    unit="°C", paper="worse than tests 1-4 (§6, Fig. A1)",
+                    note=f"worst of tests 1-4: {float(good.rms_eps.max()):.4f}")
+        if other:
+            ctx.compare(f"{r.test}: RMS error vs true sensor temperature", ours=float(r.rms_true), unit="°C",
+                        paper="worse than tests 1-4", note=f"worst of tests 1-4: {float(good.rms_true.max()):.4f}")
+
+    def worse(test, key):
+        worst = np.max([seeds[t][key] for t in good.test], axis=0)
+        return direction(seeds[test][key] - worst, +1, what=f"{test} - worst of tests 1-4 ({key})")
+
+    for test, what in (("A-5", "If σv² is too high (A-5, σv² = 1.0), particles may not be able to match the actual "
+                                "measurements"),
+                       ("A-6", "An overly high σn² (A-6, σn² = 1.0) limits the confidence in the measurement in "
+                               "favour of the model")):
+        if test not in seeds:
+            continue
+        others = []
+        if other:
+            others.append(Reading("worse against the true (unquantised) sensor temperature (simulation only)",
+                                  f"RMS error vs truth of {test} minus the worst of A/B/C-1..4, per PF seed",
+                                  worse(test, "rms_true")))
+        ctx.claim(what, "[Embedded] §6, Table A1, Fig. A1",
+                  f"RMS eq. 13 error of {test} minus the worst of A/B/C-1..4, per PF seed [°C]",
+                  worse(test, "rms_eps"), paper="> 0 (worse than every correct setting)",
+                  reading="worse eq. 13 error (estimate vs the measurement), the sentence speaks of matching the "
+                          "measurements and Fig. A1 plots estimate against measurement" if others else "",
+                  others=others)
     lo_v = [t for t in good.test if t.endswith(("-3", "-4"))]     # sigma_v^2 = 0.001
     hi_v = [t for t in good.test if t.endswith(("-1", "-2"))]     # sigma_v^2 = 0.010 / 0.005
+    d_v = _seed_mean(seeds, hi_v, metric) - _seed_mean(seeds, lo_v, metric)
+    ctx.compare(f"mean RMS error ({metric}) tests 1-2 (σv² 0.010/0.005) - tests 3-4 (σv² 0.001)",
+                ours=float(np.mean(d_v)), unit="°C", paper="> 0 (lower σv² better, §6)")
     ctx.claim("Better results with the lower process-noise variance (σv² = 0.001, tests 3-4) than with "
-              "σv² = 0.010/0.005 (tests 1-2)", "[Embedded] §6, Fig. A1d,e",
-              f"mean RMS error ({metric}) of tests 1-2 minus tests 3-4 over A/B/C, per PF seed",
-              direction(_seed_mean(seeds, hi_v, metric) - _seed_mean(seeds, lo_v, metric), +1,
-                        what="tests 1-2 - tests 3-4"),
-              paper="> 0", note="tests 3-4 also change σn² (0.010 / 0.001), so the comparison is confounded "
-                                "as in the paper's table")
-    by_vn = a1.groupby("var_n")[metric].mean()
-    best_vn = float(by_vn.idxmin())
+              "σv² = 0.010/0.005 (tests 1-2), which proves that the model is well fitted", "[Embedded] §6, Fig. A1d,e",
+              f"mean RMS error ({metric}) of tests 1-2 minus tests 3-4 over A/B/C",
+              not_reproducible("which process-noise variance is best is set by how well eq. 10 fits the plant; the "
+                               "paper's statement is about its chamber, ours is a simulated plant whose mismatch to "
+                               f"eq. 10 we chose (our difference, {np.mean(d_v):+.4f} °C, is shown as a comparison)"),
+              paper="> 0")
+    # "sigma_n^2 comparable to the resolution": computed for both readings over the correct settings (tests 1-4),
+    # shown as comparisons; not scored (the best sigma_n^2 is set by the plant's noise and mismatch, both guessed)
     res = chamber.RESOLUTION
-    ctx.compare("σn² with the lowest mean RMS error over Table A1", ours=best_vn, paper="comparable to the resolution",
-                note=f"σn = {np.sqrt(best_vn):.3f} °C vs resolution {res} °C; metric {metric}; "
-                     + ", ".join(f"σn²={k:g}: {v:.4f}" for k, v in by_vn.items()))
-    # "sigma_n^2 comparable to the resolution" has two readings; the grid value nearest (log scale) to each:
-    grid = np.array(sorted(a1.var_n.unique()), dtype=float)
+    by_vn = good.groupby("var_n")[metric].mean()
+    best_vn = float(by_vn.idxmin())
+    grid = np.array(sorted(good.var_n.unique()), dtype=float)
+    ctx.compare("σn² of tests 1-4 with the lowest mean RMS error", ours=best_vn, paper="comparable to the resolution",
+                note=f"metric {metric}; " + ", ".join(f"σn²={k:g}: {v:.4f}" for k, v in by_vn.items())
+                     + "; σn² 0.010 occurs only with σv² 0.001 (test 3), so the ranking is confounded as in the paper's table")
     for reading, target in (("σn ≈ resolution (σn² ≈ 0.0039)", res ** 2), ("σn² ≈ resolution (0.0625)", res)):
         near = float(grid[np.argmin(np.abs(np.log(grid / target)))])
-        ctx.claim("The best effects were observed for σn² comparable to the resolution of the measuring device "
-                  f"(reading: {reading})", "[Embedded] §6, Table A1", "σn² of Table A1 with the lowest mean RMS error",
-                  holds(best_vn == near, f"best σn² over Table A1 (mean {metric} over tests and PF seeds) is "
-                                         f"{best_vn:g}; agree if it is the grid value nearest {target:.4g}, i.e. {near:g}"),
-                  paper=near)
+        ctx.compare(f"grid σn² of tests 1-4 nearest the reading {reading}", ours=near, paper=best_vn,
+                    note="'paper' column: our best σn² of tests 1-4")
+    ctx.claim("In each test case, the best effects were observed for σn² comparable to the resolution of the "
+              "measuring device", "[Embedded] §6, Table A1", "σn² of tests 1-4 with the lowest mean RMS error",
+              not_reproducible("the best measurement-noise setting is set by the real sensor's noise and the model's "
+                               "mismatch to the real chamber; our plant's analogue noise (0.01 °C) and mismatch are "
+                               f"guesses, so our best σn² ({best_vn:g}, see comparisons, both readings) tests neither"),
+              paper="σn² ~ resolution")
     if metric == "rms_true":
         ctx.note("Appendix A errors are reported both against the measurement (eq. 13, rms_eps/max_eps, as the paper "
-                 "plots) and against the simulated true (unquantised) sensor temperature (rms_true/max_true); claims use the latter "
-                 "because an estimate that copies the quantised measurement would score eps = 0.")
+                 "plots) and against the simulated true (unquantised) sensor temperature (rms_true/max_true); claims "
+                 "about matching the measurements use eq. 13 and show the truth as a sensitivity row, claims about "
+                 "estimation quality use the truth.")
 
 
 def _np_claim(ctx, df: pd.DataFrame, seeds: dict) -> None:
-    """[Embedded] §5.2/§6: model (10) needs a sufficiently large N_p (Table A2)."""
+    """[Embedded] §5.2: model (10) needs a sufficiently large N_p (Table A2): one sentence, one finding."""
     metric = _metric(df)
     a2 = df[(df.table == "A2") | df.test.isin(["A-1", "B-1", "C-1"])]
     by_np = a2.groupby("n_particles")[metric].mean()
@@ -448,23 +519,44 @@ def _np_claim(ctx, df: pd.DataFrame, seeds: dict) -> None:
                 ours=", ".join(f"N_p={int(k)}: {v:.4f}" for k, v in by_np.items()),
                 paper="model (10) needs a sufficiently large N_p (§5.2, §6)")
     tests = {n: list(a2[a2.n_particles == n].test) for n in (100, 500, 1000)}
-    for small in (100, 500):
-        ctx.claim(f"Model (10) needs a sufficiently large number of particles: N_p = {small} worse than N_p = 1000",
-                  "[Embedded] §5.2, §6, Table A2", f"mean RMS error ({metric}) over A/B/C, N_p = {small} minus 1000, "
-                  "per PF seed", direction(_seed_mean(seeds, tests[small], metric) - _seed_mean(seeds, tests[1000], metric),
-                                           +1, what=f"N_p={small} - N_p=1000"), paper="> 0")
+
+    def diff(small, key):
+        return direction(_seed_mean(seeds, tests[small], key) - _seed_mean(seeds, tests[1000], key), +1,
+                         what=f"N_p={small} - N_p=1000 ({key})")
+
+    others = [Reading("N_p = 500 worse than N_p = 1000", f"mean RMS error ({metric}), N_p = 500 minus 1000",
+                      diff(500, metric))]
+    if metric == "rms_true":
+        others.append(Reading("N_p = 100 worse than N_p = 1000 in eq. 13 error (vs the measurement)",
+                              "mean RMS eps, N_p = 100 minus 1000", diff(100, "rms_eps")))
+    ctx.claim("In the case of model (10), a sufficiently large number of particles is needed for a correct estimation",
+              "[Embedded] §5.2, Table A2", f"mean RMS error ({metric}) over A/B/C, N_p = 100 minus 1000, per PF seed",
+              diff(100, metric), paper="> 0",
+              reading="the smallest N_p of Table A2 (100) estimates worse than the largest (1000): the sentence "
+                      "contrasts too few particles with enough, and Table A2's extremes are the paper's test of it",
+              others=others,
+              note="§6 repeats the statement ('a sufficiently large number of particles is needed'); scored once")
 
 
 def _operating_points_claim(ctx, df: pd.DataFrame, seeds: dict) -> None:
     """[Embedded] §6: the estimate follows the measurements at the different set temperatures (Fig. A1a,j)."""
-    metric = _metric(df)
     tests = [t for t in df[df.table == "A1"].test if not t.endswith(("-5", "-6"))]
-    worst = np.max([seeds[t][metric] for t in tests], axis=0)
+    why = f"one DS18B20 step ({chamber.RESOLUTION} °C), the measurement accuracy the paper states (§3)"
+
+    def worst(key):
+        return in_band(np.max([seeds[t][key] for t in tests], axis=0), 0.0, chamber.RESOLUTION,
+                       what=f"worst RMS error ({key}) over tests 1-4", why=why)
+
+    others = []
+    if _metric(df) == "rms_true":
+        others.append(Reading("against the true (unquantised) sensor temperature (simulation only)",
+                              "worst RMS error vs truth over A/B/C-1..4, per PF seed", worst("rms_true")))
     ctx.claim("Good adjustment of the estimate to the measurements at the different temperature values (operating "
               "points) with the correct settings (tests 1-4)", "[Embedded] §6, Fig. A1a,j",
-              f"worst RMS error ({metric}) over A/B/C-1..4 minus one sensor step (0.0625 °C), per PF seed",
-              direction(worst - chamber.RESOLUTION, -1, what="worst RMS - 0.0625 °C"),
-              paper="< one sensor step (our reading of 'good adjustment')")
+              "worst RMS eq. 13 error over A/B/C-1..4, per PF seed [°C]", worst("rms_eps"),
+              paper="< one sensor step (our reading of 'good adjustment')",
+              reading="eq. 13 error (estimate vs the measurement): the sentence speaks of adjustment to the "
+                      "measurements" if others else "", others=others)
 
 
 @recipe("embedded:tableA1", aliases=("tableA1",), title="Appendix A Table A1: σv²/σn² grid, N_p = 1000",
@@ -493,28 +585,30 @@ def tableA2(ctx):
 @recipe("embedded:figA1", aliases=("figA1",), title="Appendix A Fig. A1: one panel per test",
         quick_cost="~1 min", full_cost="~5 min", options=OPTIONS, reads_data=True)
 def figA1(ctx):
-    import matplotlib.pyplot as plt
-
     df, series, seeds = _grid(ctx)
     names = list(df.test)
     ncol = 4
     nrow = int(np.ceil(len(names) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(3.2 * ncol, 2.2 * nrow), squeeze=False)
+    fig, axes = plotting.subplots(nrow, ncol, figsize=(3.3 * ncol, 2.5 * nrow), squeeze=False)
     rows = []
-    for ax, name in zip(axes.flat, names):
+    for i, (ax, name) in enumerate(zip(axes.flat, names)):
         cols, yhat = series[name]
         t = cols["time_s"]
-        ax.step(t, cols["y"], where="post", color="red", lw=0.7)
-        ax.plot(t, yhat, color="blue", lw=0.7)
+        ax.step(t, cols["y"], where="post", color="red", lw=0.7, label="measured y")
+        ax.plot(t, yhat, color="blue", lw=0.7, label=r"$\hat y_{m1}$ (eq. 10)")
         r = df[df.test == name].iloc[0]
-        ax.set_title(f"{name}: σv²={r.var_v:g}, σn²={r.var_n:g}, N_p={int(r.n_particles)}", fontsize=7)
-        ax.tick_params(labelsize=6)
-        ax.grid(alpha=0.3)
+        plotting.label(ax, "time [s]", "temperature [°C]",
+                       f"{name}: set {r.set_temp:g} °C, σv²={r.var_v:g}, σn²={r.var_n:g}, N_p={int(r.n_particles)}")
+        ax.title.set_fontsize(7)
+        if i == 0:
+            ax.legend(loc="lower right", fontsize=6)
         rows.append(pd.DataFrame({"test": name, "time_s": t, "y": cols["y"], "y_hat_m1": yhat,
                                   "truth": cols["truth"]}))
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
-    fig.tight_layout()
+    src = f"log {ctx.data.name}" if ctx.data else "simulated chamber, heating then cooling to the set temperature"
+    fig.suptitle(f"Fig. A1: every test of Tables A1/A2 with model (10), first PF seed ({src}); "
+                 "A/B/C = set 22.0/22.5/23.0 °C")
     ctx.write_figure("figA1", fig)
     ctx.write_table("figA1", pd.concat(rows, ignore_index=True))
     ctx.write_table("figA1_errors", df)

@@ -11,7 +11,8 @@ from __future__ import annotations
 import pandas as pd
 
 from pfbench.recipes import recipe
-from pfbench.verdicts import holds
+from pfbench import plotting
+from pfbench.verdicts import close_to, holds, not_reproducible
 
 FULL_CONFIGS = {"float": ((20, 100), (40, 100), (20, 200), (40, 200)),
                 "double": ((8, 50), (16, 50), (8, 100), (16, 100))}
@@ -50,10 +51,9 @@ def mcu(ctx):
     ctx.write_table("mcu", df)
     ctx.write_json("mcu", res)
 
-    import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    fig, axes = plotting.subplots(1, 3, figsize=(13, 4.4))
     for ax, prec in zip(axes[:2], ("double", "float")):
         g = df[df.precision == prec]
         x = np.arange(len(g))
@@ -67,19 +67,19 @@ def mcu(ctx):
                                  g.emulated_ms_worst.to_numpy() - vals]) / 1e3
             ax.bar(x + (i - 1) * 0.27, vals / 1e3, 0.27, label=lab, yerr=yerr, capsize=3)
         ax.set_xticks(x, [f"M={m}\nN={n}" for m, n in zip(g.steps, g.particles)])
-        ax.set_ylabel("time (s)")
-        ax.set_title(f"{res[prec]['build']} ({prec})")
-    axes[0].legend(fontsize=8)
+        plotting.label(ax, "configuration (M iterations, N_p particles)", "execution time [s]",
+                       f"{res[prec]['build']} ({prec})")
+    axes[0].legend()
     g = df[df.precision == "ratio"]
     x = np.arange(len(g))
     for i, (col, lab) in enumerate((("paper_ms", "Table 2"), ("analytic_ms", "analytic"),
                                     ("emulated_ms", "emulated"))):
         axes[2].bar(x + (i - 1) * 0.27, g[col].astype(float).fillna(0), 0.27, label=lab)
     axes[2].set_xticks(x, [f"M={m}\nN={n}" for m, n in zip(g.steps, g.particles)])
-    axes[2].set_title("D(S) / D(O) time ratio")
-    axes[2].legend(fontsize=8)
+    plotting.label(axes[2], "configuration (M iterations, N_p particles)", "D(S) / D(O) time ratio [-]",
+                   "D(S) / D(O) time ratio")
+    axes[2].legend()
     fig.suptitle("STM32F4 @ 168 MHz: bootstrap PF on Ob1 (error bars: best/worst pipeline timing)")
-    fig.tight_layout()
     ctx.write_figure("mcu", fig)
 
     for prec, r in res.items():
@@ -102,17 +102,30 @@ def mcu(ctx):
             lo, hi = row["emulated_ms_best"], row["emulated_ms_worst"]
             ctx.claim(f"STM32F407 {r['build']} execution time, M = {row['steps']}, N_p = {row['particles']}",
                       "[Embedded] Table 2", "emulated Cortex-M4 time (best-worst pipeline timing) [ms]",
-                      holds(lo <= row["paper_ms"] <= hi,
-                            f"agree if the published time lies in our emulated best-worst range "
-                            f"[{lo:.0f}, {hi:.0f}] ms (nominal {row['emulated_ms']:.0f} ms)"),
-                      paper=row["paper_ms"])
+                      not_reproducible(
+                          "the authors' C is not published: the emulated time is of our re-implementation, whose "
+                          "unstated choices (normal generator, cos(1.2k) per particle, -O0 for D(S)) move it more than "
+                          f"the timing table does (see the notes); emulated {lo:.0f}-{hi:.0f} ms is shown as a "
+                          "comparison"), paper=row["paper_ms"])
     d, f = res["double"]["table2"][-1], res["float"]["table2"][-1]
     lo, hi = d["emulated_ms_best"] / f["emulated_ms_worst"], d["emulated_ms_worst"] / f["emulated_ms_best"]
+    ratios = [d_["paper_ms"] / f_["paper_ms"] for d_, f_ in zip(res["double"]["table2"], res["float"]["table2"])]
+    paper_ratio = d["paper_ms"] / f["paper_ms"]
+    tol = max(abs(x / paper_ratio - 1.0) for x in ratios)
     ctx.claim("D(S)/D(O) time ratio at M = N_p = 1000", "[Embedded] §5.1, Table 2",
-              "emulated D(S) time / emulated D(O) time",
-              holds(lo <= d["paper_ms"] / f["paper_ms"] <= hi,
-                    f"agree if the published ratio lies in [{lo:.1f}, {hi:.1f}] (best/worst pipeline timing of "
-                    "both builds)"), paper=round(d["paper_ms"] / f["paper_ms"], 2))
+              "emulated D(S) time / emulated D(O) time (interval: best/worst pipeline timing of both builds)",
+              close_to(d["emulated_ms"] / f["emulated_ms"], paper_ratio, tol, interval=(lo, hi),
+                       why="the paper's own ratio of the same two programs spans "
+                           + "-".join(f"{x:.1f}" for x in sorted(ratios)) + " across Table 2's cells"),
+              paper=round(paper_ratio, 2),
+              note="a ratio of the two builds of one re-implementation: the choices that move each absolute time "
+                   "(normal generator, libm calls per particle) largely cancel, the soft-float cost of double does not")
+    ctx.claim("The highly optimized version D(O) is much more efficient than the standard D(S)", "[Embedded] §5.1, Fig. 5",
+              "smallest emulated D(S)/D(O) time ratio over Table 2's configurations (worst case of the pipeline timing)",
+              holds(min(d_["emulated_ms_best"] / f_["emulated_ms_worst"]
+                        for d_, f_ in zip(res["double"]["table2"], res["float"]["table2"])) > 10,
+                    "deterministic emulation: agree if the worst-case ratio exceeds 10 (our reading of 'much': an "
+                    "order of magnitude; the paper's own ratios are 29.9-36.3)"), paper="much faster")
     ctx.compare("D(S)/D(O) ratio at M=N=1000 (emulated)", ours=round(d["emulated_ms"] /
                 f["emulated_ms"], 2), paper=round(d["paper_ms"] / f["paper_ms"], 2))
     top_d = res["double"]["breakdown"]["by_c_function_inclusive"]

@@ -37,11 +37,12 @@ def mcu_fit(ctx):
     ctx.write_table("mcu_fit", df)
     ctx.write_json("mcu_fit", {"fits": res, "cores": [c.as_dict() for c in cores.all_cores()]})
 
-    import matplotlib.pyplot as plt
     import numpy as np
 
+    from pfbench import plotting
+
     order = list(cores.names())
-    fig, axes = plt.subplots(1, len(CASES), figsize=(6.2 * len(CASES), 4.6), sharey=True)
+    fig, axes = plotting.subplots(1, len(CASES), figsize=(6.2 * len(CASES), 4.8), sharey=True)
     for ax, (model, period, label) in zip(np.atleast_1d(axes), CASES):
         g = df[df.model == model]
         x = np.arange(len(order))
@@ -57,12 +58,12 @@ def mcu_fit(ctx):
         names = [f"{cores.get(k).name}\n{cores.get(k).chip}\n{cores.get(k).clock_mhz:g} MHz" for k in order]
         ax.set_xticks(x, names, fontsize=7)
         ax.set_yscale("log")
-        ax.set_title(label)
+        plotting.label(ax, "Cortex-M core (typical chip, clock)", "largest N_p meeting the period and RAM [particles]",
+                       label)
         ax.grid(axis="y", which="both", alpha=0.3)
-    np.atleast_1d(axes)[0].set_ylabel("largest N_p meeting the period and RAM")
-    np.atleast_1d(axes)[0].legend(fontsize=8, title="precision")
-    fig.suptitle("Bootstrap PF: particles per Cortex-M core (cost model; 'RAM' = RAM binds, else time)")
-    fig.tight_layout()
+    np.atleast_1d(axes)[0].legend(title="precision")
+    fig.suptitle("Bootstrap PF: particles per Cortex-M core (cost model; 'RAM' = RAM binds, else time; "
+                 "no paper publishes these numbers)")
     ctx.write_figure("mcu_fit", fig)
 
     for model, period, label in CASES:

@@ -199,10 +199,11 @@ def mcu_models(ctx):
 
 
 def _figure(ctx, ok, core: str) -> None:
-    import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
+    from pfbench import plotting
+
+    fig, axes = plotting.subplots(1, 2, figsize=(13, 5))
     ax = axes[0]
     if len(ok):
         lo = 0.5 * min(ok.emulated_cycles_at_mn.min(), ok.code_cycles_per_particle_step.min())
@@ -239,14 +240,12 @@ def _figure(ctx, ok, core: str) -> None:
         axes[1].axhline(0, color="k", lw=0.8)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel(f"emulated cycles / particle-step (Cortex-{core.upper()}, zero wait states)")
-    ax.set_ylabel("predicted cycles / particle-step")
-    ax.set_title("Cost model vs emulation")
+    plotting.label(ax, f"emulated cycles / particle-step [cycles] (Cortex-{core.upper()}, zero wait states)",
+                   "predicted cycles / particle-step [cycles]", "Cost model vs emulation (no paper value)")
     ax.legend(fontsize=7)
-    axes[1].set_ylabel("prediction / emulation - 1 (%)")
-    axes[1].set_title("Cost model error per model (training: ob1, thesis_example)")
+    plotting.label(axes[1], "model (registered pfbench model)", "prediction / emulation - 1 [%]",
+                   "Cost model error per model (training: ob1, thesis_example)")
     axes[1].legend(fontsize=7)
     fig.suptitle(f"Each model's own compiled code in the C bootstrap harness, Cortex-{core.upper()}"
                  + (" (STM32F4 @ 168 MHz)" if core == "m4" else ""))
-    fig.tight_layout()
     ctx.write_figure("mcu_models", fig)

@@ -17,7 +17,9 @@ import pandas as pd
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, run_batch, run_once
 from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
-from pfbench.verdicts import direction, holds, no_dependence
+from pfbench import verdicts
+from pfbench.plotting import OTHER, OURS, label, subplots
+from pfbench.verdicts import SETUP, direction, holds, no_dependence
 
 DT = 125e-6
 FIG44_TIMES = (0.0, 0.009, 0.019, 0.028, 0.038, 0.047, 0.056, 0.066, 0.075)
@@ -43,18 +45,14 @@ def _common(ctx):
 @recipe("thesis:fig4.1", title="Currents in the start-up, EKF vs SMC (thesis Fig. 4.1)",
         quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
 def fig4_1(ctx):
-    import matplotlib.pyplot as plt
-
     run, smc, ekf = _common(ctx)
     t = np.arange(smc["x"].shape[0]) * DT
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    fig, ax = subplots(1, 2, figsize=(11, 4), sharey=True)
     for a, o, name in zip(ax, (smc, ekf), ("SMC", "EKF")):
-        a.plot(t, o["x"][:, 0], label="i_alpha")
-        a.plot(t, o["x"][:, 1], label="i_beta")
-        a.set(xlabel="Time [s]", title=f"{name} in the loop (PI on the mean)")
+        a.plot(t, o["x"][:, 0], color=OURS, label="i_alpha (ours)")
+        a.plot(t, o["x"][:, 1], color=OTHER, label="i_beta (ours)")
+        label(a, "time [s]", "current [A]", f"{name} in the loop (PI on the mean), run {run}")
         a.legend()
-    ax[0].set_ylabel("current [A]")
-    fig.tight_layout()
     ctx.write_figure("fig4.1", fig)
     ctx.write_table("fig4.1", pd.DataFrame({
         "t": t, "smc_i_alpha": smc["x"][:, 0], "smc_i_beta": smc["x"][:, 1],
@@ -87,11 +85,9 @@ def _convergence_time(o, tol=0.3):
 @recipe("thesis:fig4.2", title="omega and theta, EKF vs SMC with bounds (thesis Fig. 4.2)",
         quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
 def fig4_2(ctx):
-    import matplotlib.pyplot as plt
-
     run, smc, ekf = _common(ctx)
     t = np.arange(smc["x"].shape[0]) * DT
-    fig, ax = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    fig, ax = subplots(2, 2, figsize=(11, 7), sharex=True)
     for j, (o, name) in enumerate(((smc, "SMC"), (ekf, "EKF"))):
         a = ax[0, j]
         a.plot(t, o["x"][:, 2], "k-", label="true omega")
@@ -103,8 +99,8 @@ def fig4_2(ctx):
             lo, hi = o["est"][:, 0] - 2 * o["sd"][:, 0], o["est"][:, 0] + 2 * o["sd"][:, 0]
         a.plot(t, lo, "r:", lw=0.7)
         a.plot(t, hi, "r:", lw=0.7)
-        a.set(title=f"{name}: omega [rad/s]" + (" (bounds: particle range)" if name == "SMC" else
-                                                 " (bounds: +-2 sd)"))
+        label(a, "time [s]", "omega [rad/s]", f"{name}" + (" (dotted: particle range)" if name == "SMC" else
+                                                           " (dotted: +-2 sd)"))
         a.legend(fontsize=8)
         b = ax[1, j]
         b.plot(t, o["x"][:, 3], "k.", ms=1, label="true theta")
@@ -112,9 +108,9 @@ def fig4_2(ctx):
         half = o["spread"][:, 2] if name == "SMC" else 2 * o["sd"][:, 1]
         b.plot(t, _wrap(o["est"][:, 1] - half), "m,", alpha=0.5)
         b.plot(t, _wrap(o["est"][:, 1] + half), "m,", alpha=0.5)
-        b.set(title=f"{name}: theta [rad] (wrapped)", xlabel="Time [s]", ylim=(-3.3, 3.3))
+        b.set(ylim=(-3.3, 3.3))
+        label(b, "time [s]", "theta, wrapped [rad]", f"{name}: theta (magenta: bounds)")
         b.legend(fontsize=8, markerscale=8)
-    fig.tight_layout()
     ctx.write_figure("fig4.2", fig)
     ctx.write_table("fig4.2", pd.DataFrame({
         "t": t, "omega": smc["x"][:, 2], "theta": smc["x"][:, 3], "smc_omega": smc["est"][:, 0],
@@ -147,8 +143,6 @@ def fig4_2(ctx):
         options={"run": (int, "which realisation (default 0)"),
                  "t_end": (float, "end of the plotted window in s (default 0.1)")})
 def fig4_3(ctx):
-    import matplotlib.pyplot as plt
-
     run, smc, _ = _common(ctx)
     M = smc["x"].shape[0]
     t_end = min(M, int(round(ctx.option("t_end", 0.1, float) / DT)))
@@ -160,14 +154,14 @@ def fig4_3(ctx):
     for k in range(t_end):
         Hw[k] = np.histogram(smc["hist_omega"][k], ob, weights=smc["hist_w"][k])[0]
         Ht[k] = np.histogram(smc["hist_theta"][k], tb, weights=smc["hist_w"][k])[0]
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    fig, ax = subplots(1, 2, figsize=(11, 4))
     for a, H, edges, truth, name in ((ax[0], Hw, ob, smc["x"][:t_end, 2], "omega [rad/s]"),
                                      (ax[1], Ht, tb, smc["x"][:t_end, 3], "theta [rad]")):
         a.imshow(np.sqrt(H.T), origin="lower", aspect="auto", cmap="Greys",
                  extent=(0, t[-1], edges[0], edges[-1]))
-        a.plot(t, truth, "b,", label="true")
-        a.set(xlabel="Time [s]", ylabel=name, title=f"posterior of {name.split()[0]} (sqrt scale)")
-    fig.tight_layout()
+        a.plot(t, truth, ",", color=OURS, label="true")
+        label(a, "time [s]", name, f"posterior of {name.split()[0]} (grey: sqrt of the weight)")
+        a.legend(markerscale=20)
     ctx.write_figure("fig4.3", fig)
     # bimodality: posterior mass near theta_true + pi, per time
     far = np.array([np.sum(smc["hist_w"][k] * (np.abs(_wrap(smc["hist_theta"][k] - smc["x"][k, 3]))
@@ -192,10 +186,8 @@ def fig4_3(ctx):
 @recipe("thesis:fig4.4", title="SMC joint density of (omega, theta) at listed times (thesis Fig. 4.4)",
         quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
 def fig4_4(ctx):
-    import matplotlib.pyplot as plt
-
     run, smc, _ = _common(ctx)
-    fig, axes = plt.subplots(3, 3, figsize=(11, 9), sharex=True, sharey=True)
+    fig, axes = subplots(3, 3, figsize=(11, 9), sharex=True, sharey=True)
     rows = []
     for a, ts in zip(axes.ravel(), FIG44_TIMES):
         k = min(int(round(ts / DT)), smc["x"].shape[0] - 1)
@@ -203,18 +195,15 @@ def fig4_4(ctx):
         a.scatter(om, th, s=300 * w + 2, c=w, cmap="Greys", vmin=0, vmax=max(w.max(), 1e-12),
                   edgecolors="k", linewidths=0.2)
         a.plot(smc["x"][k, 2], smc["x"][k, 3], "b+", ms=12, mew=2)
-        a.set(title=f"t={ts:.3f}s", xlim=(-20, 20), ylim=(-math.pi, math.pi))
+        a.set(xlim=(-20, 20), ylim=(-math.pi, math.pi))
+        label(a, "omega [rad/s]", "theta [rad]", f"t = {ts:.3f} s (+: true state)")
         # modes: cluster the weighted theta particles into "near truth" / "pi away"
         near = np.abs(_wrap(th - smc["x"][k, 3])) <= math.pi / 2
         rows.append({"t": ts, "mass_near_truth": float(w[near].sum()),
                      "mass_pi_away": float(w[~near].sum()),
                      "omega_mean_near": float(np.sum(w[near] * om[near]) / max(w[near].sum(), 1e-300)),
                      "omega_mean_far": float(np.sum(w[~near] * om[~near]) / max(w[~near].sum(), 1e-300))})
-    for a in axes[-1]:
-        a.set_xlabel("omega [rad/s]")
-    for a in axes[:, 0]:
-        a.set_ylabel("theta [rad]")
-    fig.tight_layout()
+
     ctx.write_figure("fig4.4", fig)
     df = pd.DataFrame(rows)
     ctx.write_table("fig4.4", df)
@@ -230,6 +219,18 @@ def fig4_4(ctx):
 
 #: the EKF's theta prior sd: that of U(-pi, pi), the thesis's theta prior (§4.4.1)
 EKF_PRIOR_SD = math.pi / math.sqrt(3.0)
+def _sd_reading(sd: float) -> str:
+    """The reading of Fig. 4.6's unstated theta prior spread ``sd``, and why it is (not) primary."""
+    if math.isclose(sd, EKF_PRIOR_SD):
+        return (f"prior sd pi/sqrt(3) = {sd:.3g} rad: the only theta spread the thesis states (that of the "
+                "U(-pi, pi) prior of §4.4.1, the prior of every other figure), so the primary reading")
+    if sd < 1.5:
+        return (f"prior sd {sd:.3g} rad: not in the text; a 60-particle cloud this narrow centred pi away "
+                "from the truth cannot cover it, so the SMC fails there by construction (a reading built "
+                "to fail, shown for sensitivity only)")
+    return f"prior sd {sd:.3g} rad: not in the text (sensitivity only)"
+
+
 #: "not significant": the 95 % interval of the paired failure-rate difference (offset pi minus
 #: offset 0) must lie within +-NO_DEP_MARGIN; at the thesis's 10 runs per point one binomial sd of a
 #: rate near 1/2 is 16 points, so differences below 20 points cannot be significant at that scale
@@ -248,8 +249,6 @@ def fig4_6(ctx):
     sd; the default is the EKF's own spread pi/sqrt(3) (that of the U(-pi, pi) prior of §4.4.1, the
     prior of every other figure of §4.4), with which a 60-particle cloud still covers the circle;
     sd = 1 rad is also run (with it 60 particles centred pi away almost never cover the truth)."""
-    import matplotlib.pyplot as plt
-
     n_runs = ctx.option("runs", 10, int)
     n_pts = ctx.option("points", 13 if ctx.full else 5, int)
     sds = [float(v) for v in str(ctx.options.get("prior_sd", f"{EKF_PRIOR_SD!r},1.0")).split(",") if v.strip()]
@@ -270,32 +269,29 @@ def fig4_6(ctx):
     ctx.write_table("fig4.6_runs", pd.DataFrame(
         {f"failed_{est}_sd{sd:.4g}_off{off:.4g}": r["failed"] for (sd, off, est), r in per_run.items()}))
     where = "[Thesis] §4.4.2, Fig. 4.6"
+    smc_rows, ekf_rows = [], []
     for sd in sds:
         d = df[df.prior_sd == sd]
-        fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-        for est, col in (("smc", "tab:blue"), ("ekf", "tab:red")):
+        fig, ax = subplots(1, 2, figsize=(11, 4))
+        for est, col in (("smc", OURS), ("ekf", OTHER)):
             e = d[d.estimator == est]
-            ax[0].plot(e.offset, e.theta_err, "o-", color=col, label=est.upper())
-            ax[1].plot(e.offset, 100 * e.failure_rate, "o-", color=col, label=est.upper())
-        ax[0].set(xlabel="prior theta offset [rad]", ylabel="mean |theta error|, last 0.05 s [rad]")
-        ax[1].set(xlabel="prior theta offset [rad]", ylabel="failures [%]")
+            ax[0].plot(e.offset, e.theta_err, "o-", color=col, label=f"{est.upper()} (ours)")
+            ax[1].plot(e.offset, 100 * e.failure_rate, "o-", color=col, label=f"{est.upper()} (ours)")
+        label(ax[0], "prior theta offset [rad]", "mean |theta error|, last 0.05 s [rad]")
+        label(ax[1], "prior theta offset [rad]", "failures [% of runs]")
         for a in ax:
             a.legend()
-        fig.suptitle(f"averages over {n_runs} runs per point, prior sd {sd:.3g} rad")
-        fig.tight_layout()
+        fig.suptitle(f"averages over {n_runs} runs per point, prior sd {sd:.3g} rad (the thesis's curves "
+                     "were not extracted)")
         ctx.write_figure("fig4.6" if sd == sds[0] else f"fig4.6_sd{sd:.3g}", fig)
         lo_off, hi_off = float(offsets[0]), float(offsets[-1])
         fail = {est: (per_run[(sd, hi_off, est)]["failed"].astype(float)
                       - per_run[(sd, lo_off, est)]["failed"].astype(float)) for est in ("smc", "ekf")}
-        ctx.claim("the SMC's dependence on the difference between prior estimate and initial state "
-                  "is not significant", where,
-                  f"SMC failure(offset pi) - failure(offset 0) per run, prior sd {sd:.3g}",
-                  no_dependence(fail["smc"], NO_DEP_MARGIN, "paired failure difference"),
-                  paper="not significant")
-        ctx.claim("the EKF gives good results if the initial state is not very different from the prior "
-                  "estimate (and fails otherwise)", where,
-                  f"EKF failure(offset pi) - failure(offset 0) per run, prior sd {sd:.3g}",
-                  direction(fail["ekf"], +1, "paired failure difference"), paper="> 0")
+        what = _sd_reading(sd)
+        smc_rows.append(verdicts.Reading(what, f"SMC failure(offset pi) - failure(offset 0) per run, prior sd {sd:.3g}",
+                                         no_dependence(fail["smc"], NO_DEP_MARGIN, "paired failure difference")))
+        ekf_rows.append(verdicts.Reading(what, f"EKF failure(offset pi) - failure(offset 0) per run, prior sd {sd:.3g}",
+                                         direction(fail["ekf"], +1, "paired failure difference")))
         s, e = d[d.estimator == "smc"], d[d.estimator == "ekf"]
         ctx.compare(f"EKF / SMC failure rate range over offsets, prior sd {sd:.3g}",
                     ours=f"EKF {100 * e.failure_rate.min():.0f}-{100 * e.failure_rate.max():.0f} %, "
@@ -303,6 +299,13 @@ def fig4_6(ctx):
         ctx.compare(f"EKF / SMC theta error at offset 0 and pi, prior sd {sd:.3g}",
                     ours=f"EKF {e.theta_err.iloc[0]:.2f} / {e.theta_err.iloc[-1]:.2f}, "
                          f"SMC {s.theta_err.iloc[0]:.2f} / {s.theta_err.iloc[-1]:.2f}", unit="rad")
+    for claim, rows, paper in (
+            ("dependence between convergence of the particle filter and the difference between the prior "
+             "estimate and the initial state is not significant", smc_rows, "not significant"),
+            ("if the initial state is not very different from the prior estimate, the Kalman filter provides "
+             "good results (and fails otherwise)", ekf_rows, "> 0")):
+        ctx.claim(claim, where, rows[0].quantity, rows[0].outcome, paper=paper, reading=rows[0].reading,
+                  others=rows[1:])
     ctx.note(f"Fig. 4.6: the thesis does not state the prior used for this figure. Both filters get a "
              f"Gaussian theta prior N(theta_0 + offset, sd^2) (wrapped; SMC particles drawn from it) with "
              f"sd = {', '.join(f'{v:.3g}' for v in sds)} rad; fig4.6.png shows sd {sds[0]:.3g} (the EKF's "
@@ -318,24 +321,21 @@ def fig4_6(ctx):
 def fig4_5(ctx):
     """Same initial state, prior and plant-noise stream, two different random streams inside the
     particle filter (:attr:`LoopConfig.filter_stream`); PI on the posterior mean."""
-    import matplotlib.pyplot as plt
-
     run = ctx.option("run", 0, int)
     ks = [int(v) for v in str(ctx.options.get("streams", "1,2")).split(",")][:2]
     outs = [run_once(LoopConfig(point="mean", backend=ctx.backend, filter_stream=k), ctx.seed, run)
             for k in ks]
     t = np.arange(outs[0]["x"].shape[0]) * DT
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    fig, ax = subplots(1, 2, figsize=(11, 4), sharey=True)
     for a, o, k in zip(ax, outs, ks):
         a.plot(t, o["x"][:, 2], "k-", label="true omega")
         a.plot(t, o["est"][:, 0], "r--", label="SMC mean")
         a.plot(t, o["spread"][:, 0], "r:", lw=0.7)
         a.plot(t, o["spread"][:, 1], "r:", lw=0.7)
         a.plot(t, o["omega_ref"], color="grey", lw=0.6, label="reference")
-        a.set(xlabel="Time [s]", title=f"filter stream {k}: omega [rad/s]")
+        label(a, "time [s]", "omega [rad/s]", f"filter stream {k} (dotted: particle range)")
         a.legend(fontsize=8)
     fig.suptitle(f"same plant realisation (seed {ctx.seed}, run {run}), different filter random numbers")
-    fig.tight_layout()
     ctx.write_figure("fig4.5", fig)
     ctx.write_table("fig4.5", pd.DataFrame(
         {"t": t} | {f"omega_true_{k}": o["x"][:, 2] for k, o in zip(ks, outs)}
@@ -347,7 +347,7 @@ def fig4_5(ctx):
               "numbers inside the particle filter", where, "max |omega_1 - omega_2| of the true speeds",
               holds(same_x0 and gap > 0.1, "same x^(0) and first measurement in both, and the true speed "
                                            "trajectories differ by more than 0.1 rad/s somewhere"),
-              paper="the realisations differ")
+              paper="the realisations differ", kind=SETUP)
     ctx.compare("max |omega_1 - omega_2| (true speed)", ours=gap, unit="rad/s")
     # §4.4.4 on Fig. 4.5: "for a relatively long interval at the beginning ... the mean of the
     # posterior on omega is close to zero although the true value is nonzero with high probability"

@@ -52,7 +52,7 @@ def test_unknown_param_is_refused_before_construction(monkeypatch):
     (["reproduce", "thesis:fig2.3", "--option", "stpes=10"], ["stpes", "did you mean steps?"]),
     (["reproduce", "--all", "--paper", "nosuch"], ["--paper", "embedded, multipdf, thesis, rtd"]),
     (["reproduce", "--all", "--paper", "thesys"], ["did you mean thesis?"]),
-    (["reproduce", "fig2.2", "--paper", "thesis"], ["--paper", "--all"]),
+    (["reproduce", "fig2.2", "--paper", "thesis"], ["--paper", "not both"]),
     (["reproduce", "thesis:fig2.22"], ["unknown recipe", "did you mean"]),
 ])
 def test_recipe_selectors_and_options(tmp_path, args, needles):

@@ -143,6 +143,27 @@ def test_post_is_refused_where_it_does_not_apply(method):
     pfbench.run_filter(model, traj.y, traj.u, estimate="pre", **kw)
 
 
+@pytest.mark.parametrize("method", ["bootstrap", "multipdf"])
+def test_post_is_refused_on_the_array_backends(method):
+    """The array-namespace kernel (cupy, xp-numpy) takes pre only: post is one InputError naming
+    the backend, in run_filter and in make_spec (before any sweep work); pre runs. Catches post
+    silently running as pre there."""
+    model = models.get("ob1")
+    traj = model.simulate(5, seed=1)
+    kw = dict(method=method, n_particles=40, n_filters=2 if method == "multipdf" else 1, backend="xp-numpy")
+    with pytest.raises(InputError, match="estimate='post' is not available on backend 'xp-numpy'") as e:
+        pfbench.run_filter(model, traj.y, traj.u, estimate="post", **kw)
+    assert "\n" not in str(e.value)
+    r = pfbench.run_filter(model, traj.y, traj.u, estimate="pre", **kw)
+    assert r.info["estimate"] == "pre" and np.isfinite(r.estimates).all()
+    with pytest.raises(InputError, match="--estimate post is not available on backend 'xp-numpy'"):
+        pfbench.sweep.make_spec("ob1", methods=[method], particles=(40,), filters=(2,), runs=1, steps=5,
+                                backend="xp-numpy", estimate="post")
+    spec = pfbench.sweep.make_spec("ob1", methods=[method], particles=(40,), filters=(2,), runs=1,
+                                   steps=5, backend="xp-numpy", estimate="pre")
+    assert spec["estimate"] == "pre"
+
+
 @pytest.mark.parametrize("bad", ["mid", "", None, 2])
 def test_bad_estimate_is_an_input_error(bad):
     """Catches a value that is not checked (a typo running as pre)."""
@@ -159,10 +180,11 @@ def test_cli_run_estimate():
     says so; a bad value is click's one-line usage error. Catches the option not handed on."""
     from pfbench.cli import main
 
-    args = ["run", "--model", "ob1", "--particles", "50", "--steps", "20", "--backend", "numpy", "--json"]
+    args = ["run", "--model", "ob1", "--particles", "50", "--steps", "20", "--truth-seed", "0", "--json"]
+    args_np = [*args, "--backend", "numpy"]
     out = {}
     for at in ("pre", "post"):
-        r = CliRunner().invoke(main, [*args, "--estimate", at])
+        r = CliRunner().invoke(main, [*args_np, "--estimate", at])
         assert r.exit_code == 0, r.output
         out[at] = json.loads(r.output)
         assert out[at]["estimate"] == at
@@ -171,8 +193,10 @@ def test_cli_run_estimate():
     ref = pfbench.run_filter(model, traj.y, method="bootstrap", n_particles=50, backend="numpy", seed=0,
                              estimate="post")
     assert out["post"]["armse"] == pfbench.metrics.armse(ref.estimates, traj.x) != out["pre"]["armse"]
-    r = CliRunner().invoke(main, [*args, "--estimate", "mid"])
+    r = CliRunner().invoke(main, [*args_np, "--estimate", "mid"])
     assert r.exit_code == 2 and "--estimate" in r.output
+    r = CliRunner().invoke(main, [*args, "--backend", "cupy", "--estimate", "post"])  # GPU or not
+    assert r.exit_code == 2 and "estimate='post' is not available on backend 'cupy'" in r.output
 
 
 def test_sweep_estimate_cli_store_and_older_stores(tmp_path):

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from pfbench.recipes import resolve, run
-from pfbench.verdicts import AGREE, VERDICTS
+from pfbench.verdicts import AGREE, FINDING, VERDICTS
 
 TINY = [
-    ("thesis:fig2.2", {"steps": "10"}), ("thesis:fig2.3", {"steps": "10"}),
+    ("thesis:fig2.2", {"steps": "10", "runs": "3"}), ("thesis:fig2.3", {"steps": "10", "runs": "3"}),
     ("thesis:fig2.4", {"runs": "5", "particles": "20"}),
     ("thesis:fig4.7", {"runs": "2", "particles": "15,10"}),
     ("thesis:fig4.9", {"runs": "3", "particles": "15"}),
@@ -30,24 +30,141 @@ def test_recipe_records_claims_with_verdicts(tmp_path, rid, opts):
     assert ctx.claims == rec["claims"] or len(ctx.claims) == len(rec["claims"])
 
 
-def test_fig4_9_runs_both_readings_and_both_maxima(tmp_path):
+def test_fig4_9_scores_each_sentence_once_with_the_other_readings_beneath(tmp_path):
+    """One caption sentence = one finding: catches the 24 claims of one caption (2 starts x 2 maxima
+    x comparators x metrics) coming back, and a primary reading other than uniform + density mode."""
     ctx = run(resolve("thesis:fig4.9"), out_root=tmp_path, quiet=True,
               options={"runs": "3", "particles": "15"})
-    q = [c["quantity"] for c in ctx.claims]
-    for prior in ("uniform", "equidistant"):
-        for m in ("mean", "sample", "max", "max_weight"):
-            assert f"failure rate, {prior} initial particles, PI on {m}" in q
-        assert sum(prior in x and "loss(" in x for x in q) == 4      # 2 others x 2 maxima
+    findings = [c for c in ctx.claims if c["kind"] == FINDING]
+    assert len(findings) == 2
+    outperform, fails = findings
+    assert "outperforms" in outperform["claim"] and "8 %" in fails["claim"]
+    for c in findings:
+        assert "uniform initial particles" in c["quantity"] and "density mode" in c["reading"]
+        others = [o["reading"] for o in c["sensitivity"]]
+        assert any("equidistant" in o and "density mode" in o for o in others)
+        assert any("uniform" in o and "heaviest particle" in o for o in others)
+        assert any("equidistant" in o and "heaviest particle" in o for o in others)
+    # the contrast is the scored reading, the stated rates are sensitivity rows
+    assert fails["quantity"].startswith("failure(PI on the mean) - failure(PI on the maximum)")
+    assert sum(o["reading"].startswith("magnitude") for o in fails["sensitivity"]) == 3
     assert (tmp_path / "thesis" / "fig4.9.png").exists()
     assert (tmp_path / "thesis" / "fig4.9_equidistant.png").exists()
 
 
-def test_fig2_4_sweeps_observation_and_particles(tmp_path):
+def test_fig2_4_one_finding_per_sentence_over_the_reading_sweep(tmp_path):
+    """Both sentences (the 35 % text and the caption) scored once each, over 2 outliers x 2
+    observations x 2 N; catches a sentence scored per reading, or the outlier readings dropped."""
     ctx = run(resolve("thesis:fig2.4"), out_root=tmp_path, quiet=True,
               options={"runs": "4", "particles": "10,20", "steps": "8"})
-    q = [c["quantity"] for c in ctx.claims]
-    assert len(q) == 2 * 2 * 2
-    assert any("x^2/20" in x and "N = 20" in x for x in q)
+    assert len(ctx.claims) == 2
+    for c in ctx.claims:
+        rows = [c["quantity"]] + [o["quantity"] for o in c["sensitivity"]]
+        assert len(set(rows)) == 8
+        assert any("measurement" in q and "x^2/20" in q and "N = 20" in q for q in rows)
+        assert "process noise of eq. 2.25" in c["reading"]
+        assert c["quantity"].endswith("outlier in the process, y = x + v, N = 10")
+
+
+def test_sweep_claim_scores_only_when_the_lost_readings_agree():
+    """Catches a claim resting on a lost equation being scored when its readings disagree, and a
+    reading that is not about the lost part (on_lost False) wrongly blocking the score."""
+    from pfbench.verdicts import NOT_REPRODUCIBLE, holds
+    from reproductions.thesis.ch2 import sweep_claim
+
+    class Ctx:
+        def __init__(self):
+            self.claims = []
+
+        def claim(self, claim, where, quantity, outcome, paper=None, note="", *, reading="", others=()):
+            self.claims.append((outcome.verdict, reading, [o.reading for o in others]))
+
+    ok, bad = holds(True, "t"), holds(False, "t")
+    c = Ctx()
+    sweep_claim(c, "s", "[Thesis] x", [("a", "qa", ok, True), ("b", "qb", ok, True), ("m", "qm", bad, False)],
+                "a", "eq", "p")
+    assert c.claims[0][0] == AGREE and c.claims[0][2] == ["b", "m"] and "every reading" in c.claims[0][1]
+    sweep_claim(c, "s", "[Thesis] x", [("a", "qa", ok, True), ("b", "qb", bad, True)], "a", "eq", "p")
+    assert c.claims[1][0] == NOT_REPRODUCIBLE and c.claims[1][2] == ["a", "b"]
+
+
+@pytest.mark.parametrize("obs", ["linear", "quadratic"])
+def test_outlier_readings_put_0_5_in_the_process_or_the_measurement(obs):
+    """The process reading adds w_5 = 0.5 to x^(6) (pfbench index 5); the measurement reading adds
+    v_5 = 0.5 to y_5 (index 4) and leaves the state alone. Catches the outlier in the wrong place,
+    in both, or the filters' model carrying it."""
+    from reproductions.thesis.ch2 import OUTLIERS
+
+    h = (lambda x: x) if obs == "linear" else (lambda x: x * x / 20.0)
+    proc = OUTLIERS["process"][obs](outlier_step=5).simulate(10, seed=3)
+    meas = OUTLIERS["measurement"][obs](outlier_step=5).simulate(10, seed=3)
+    clean = OUTLIERS["process"][obs]().simulate(10, seed=3)
+    assert proc.x[5, 0] == pytest.approx(1.2 * proc.x[4, 0] + 0.5)
+    np.testing.assert_allclose(meas.x, clean.x)
+    assert meas.y[4, 0] == pytest.approx(h(meas.x[4, 0]) + 0.5)
+    np.testing.assert_allclose(np.delete(meas.y, 4), np.delete(clean.y, 4))
+    for m in (OUTLIERS["process"][obs](outlier_step=5), OUTLIERS["measurement"][obs](outlier_step=5)):
+        f = m.without_outlier()
+        assert f.outlier_step == -1 and type(f) is OUTLIERS["process"][obs]
+
+
+def test_all_of_is_an_intersection_union_test():
+    """Catches 'outperforms both in A and in B' agreeing when only some comparisons agree."""
+    from pfbench.verdicts import DISAGREE, UNDECIDED, direction
+    from reproductions.thesis.pmsm_control import all_of
+
+    up, down = direction([1.0, 1.1, 0.9], +1), direction([-1.0, -1.1, -0.9], +1)
+    flat = direction([1.0, -1.0, 0.1], +1)
+    assert all_of([("a", up), ("b", up)], "x").verdict == AGREE
+    assert all_of([("a", up), ("b", flat)], "x").verdict == UNDECIDED
+    assert all_of([("a", up), ("b", flat), ("c", down)], "x").verdict == DISAGREE
+
+
+def test_bands_come_from_the_papers_precision():
+    """Whole-percent rounding + the paper's own 95 % error at its 1000 runs; catches a band widened
+    (e.g. the old fixed ±3 points) or narrowed to the rounding alone."""
+    from reproductions.thesis.ch2 import paper_band_halfwidth
+    from reproductions.thesis.pmsm_control import rate_band
+
+    assert rate_band(0.08) == pytest.approx(0.005 + 1.959964 * math.sqrt(0.08 * 0.92 / 1000), rel=1e-6)
+    assert rate_band(0.02) == pytest.approx(0.01368, abs=1e-4)
+    assert paper_band_halfwidth(0.02, 100) == pytest.approx(0.005 + 1.959964 * 0.02 * math.sqrt(0.1), rel=1e-6)
+
+
+def test_fig4_6_primary_reading_is_the_thesis_prior_spread(tmp_path):
+    """The U(-pi, pi) spread pi/sqrt(3) is primary; sd = 1 rad (built to fail for the SMC at offset pi)
+    is only a sensitivity row. Catches the built-to-fail reading scored, or either sentence twice."""
+    ctx = run(resolve("thesis:fig4.6"), out_root=tmp_path, quiet=True, options={"runs": "2", "points": "2"})
+    findings = [c for c in ctx.claims if c["kind"] == FINDING]
+    assert len(findings) == 2
+    for c in findings:
+        assert "prior sd 1.81" in c["quantity"] and "primary" in c["reading"]
+        assert [o["quantity"].endswith("prior sd 1") for o in c["sensitivity"]] == [True]
+        assert "built to fail" in c["sensitivity"][0]["reading"]
+
+
+def test_fig4_7_scores_the_contrast_and_not_the_lost_exponents(tmp_path):
+    """The failure sentence is one finding (its contrast, rates beneath); the mean losses whose
+    exponents were lost are not reproducible. Catches the 5 % and 11 % scored as two findings, or
+    the equal-exponent guess scored."""
+    from pfbench.verdicts import NOT_REPRODUCIBLE
+
+    ctx = run(resolve("thesis:fig4.7"), out_root=tmp_path, quiet=True,
+              options={"runs": "2", "particles": "15,10"})
+    fail, loss = [c for c in ctx.claims if c["kind"] == FINDING]
+    assert "5 %" in fail["claim"] and "11 %" in fail["claim"] and len(fail["sensitivity"]) == 2
+    assert fail["quantity"].startswith("failure(second) - failure(first)")
+    assert loss["verdict"] == NOT_REPRODUCIBLE and len(loss["sensitivity"]) == 2
+
+
+def test_prop1_is_by_construction_and_fig4_5_setup_is_a_setup_check(tmp_path):
+    """A proven proposition and the figure's own set-up are never counted as agreement."""
+    from pfbench.verdicts import CONSTRUCTION, SETUP
+
+    ctx = run(resolve("thesis:fig2.2"), out_root=tmp_path, quiet=True, options={"steps": "10", "runs": "3"})
+    assert [c["kind"] for c in ctx.claims] == [FINDING, CONSTRUCTION]
+    ctx = run(resolve("thesis:fig4.5"), out_root=tmp_path, quiet=True)
+    assert [c["kind"] for c in ctx.claims] == [SETUP, FINDING]
 
 
 def test_mse_reduction_and_its_standard_error():

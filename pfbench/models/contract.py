@@ -1,0 +1,127 @@
+"""The model contract, checked once before a run, so that a mistake in a user's model reads as
+one line naming the model, the function and the problem instead of a traceback from deep inside a
+backend (or, worse, a run that goes on with wrongly broadcast arrays).
+
+:func:`check_model` calls the model's four functions on a tiny block of particles in NumPy, the
+same check for both backends: each must be a ``@staticmethod`` and return float arrays of the
+documented shapes (:mod:`pfbench.models.base`):
+
+=================  ===========================================  =============
+function           called as                                    returns
+=================  ===========================================  =============
+``initial``        ``initial(rng, n, p)``                       (n, n_x)
+``transition``     ``transition(x, u_t, t, noise, p)``          (n, n_x)
+``log_likelihood`` ``log_likelihood(y_t, x, u_t, t, p)``        (n,)
+``observe``        ``observe(x, u_t, t, noise, p)``             (n, n_y)
+=================  ===========================================  =============
+
+An exception raised by the model's own code is reported with its type and message (``pfbench
+--debug`` shows the traceback). :func:`numba_failure` does the same for code numba cannot compile:
+it compiles the four functions one by one on the probe's arguments to name the one that fails.
+"""
+from __future__ import annotations
+
+import contextlib
+import inspect
+
+import numpy as np
+
+from ..errors import InputError
+
+FUNCTIONS = ("initial", "transition", "log_likelihood", "observe")
+PROBE = 3   # particles in the probe block
+
+
+def _name(model) -> str:
+    return str(getattr(model, "name", None) or type(model).__name__)
+
+
+def _check_static(model) -> None:
+    for fn in FUNCTIONS:
+        attr = inspect.getattr_static(type(model), fn, None)
+        if attr is None:
+            raise InputError(f"model {_name(model)!r} has no {fn}() (see `pfbench.models.base`)")
+        if not isinstance(attr, staticmethod):
+            raise InputError(f"model {_name(model)!r}: {fn} must be a @staticmethod (it takes no self; "
+                             "put @staticmethod above its def)")
+
+
+def _probe_args(model, y, u) -> dict:
+    """Arguments of each function on the probe block (zero noise, the first measurement)."""
+    p = model.params()
+    n = PROBE
+    return {"p": p, "n": n, "y0": np.asarray(y[0]), "u0": np.asarray(u[0]),
+            "noise": np.zeros((n, int(model.n_noise))), "obs_noise": np.zeros((n, int(model.obs_noise_dim)))}
+
+
+def _call(model, fn: str, *args):
+    try:
+        return getattr(model, fn)(*args)
+    except Exception as exc:   # the user's code: report it as theirs, not as a pfbench bug
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise InputError(f"model {_name(model)!r}: {fn}() raised {type(exc).__name__}"
+                         + (f": {first}" if first else "") + " (pfbench --debug shows the traceback)") from exc
+
+
+def _shape(model, fn: str, value, want: tuple) -> np.ndarray:
+    arr = np.asarray(value)
+    if arr.shape != want or not np.issubdtype(arr.dtype, np.number):
+        got = f"shape {arr.shape} of {arr.dtype}" if arr.ndim or np.issubdtype(arr.dtype, np.number) \
+            else type(value).__name__
+        raise InputError(f"model {_name(model)!r}: {fn}() must return a float array of shape {want}, "
+                         f"got {got} (on a block of {PROBE} particles)")
+    return arr.astype(np.float64)
+
+
+def check_model(model, y, u) -> None:
+    """Check the model's contract on a probe block (module docstring); an InputError naming the
+    model, the function and the problem otherwise. ``y``, ``u``: the run's checked inputs
+    (:func:`pfbench.filters.inputs.check_inputs`)."""
+    _check_static(model)
+    a = _probe_args(model, y, u)
+    n, n_x, n_y = a["n"], int(model.n_x), int(model.n_y)
+    x = _shape(model, "initial", _call(model, "initial", np.random.default_rng(0), n, a["p"]), (n, n_x))
+    x = _shape(model, "transition", _call(model, "transition", x, a["u0"], 0, a["noise"], a["p"]), (n, n_x))
+    _shape(model, "log_likelihood", _call(model, "log_likelihood", a["y0"], x, a["u0"], 0, a["p"]), (n,))
+    _shape(model, "observe", _call(model, "observe", x, a["u0"], 0, a["obs_noise"], a["p"]), (n, n_y))
+
+
+def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
+    """After numba failed to compile a kernel for ``model`` (``exc``): compile each model function
+    alone on the probe's arguments and return an InputError naming the first that numba cannot
+    compile, with numba's first line; None when each compiles alone (then the failure is not the
+    model's, and the caller re-raises it)."""
+    import numba
+
+    a = _probe_args(model, y, u)
+    x = np.zeros((a["n"], int(model.n_x)))
+    calls = {"initial": None,   # drawn in NumPy by every kernel: never compiled
+             "transition": (x, a["u0"], 0, a["noise"], a["p"]),
+             "log_likelihood": (a["y0"], x, a["u0"], 0, a["p"]),
+             "observe": None}
+    for fn, args in calls.items():
+        if args is None:
+            continue
+        try:
+            numba.njit(getattr(type(model), fn))(*args)
+        except Exception as err:   # numba's typing / bytecode errors, or the model's own raise
+            lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
+            why = next((ln for ln in lines if not ln.startswith(("During:", "File", "^"))), type(err).__name__)
+            return InputError(f"model {_name(model)!r}: numba cannot compile {fn}(): {why} "
+                              "(--backend numpy runs plain Python; pfbench --debug shows numba's report)")
+    return None
+
+
+@contextlib.contextmanager
+def named_model_errors(model, y, u, backend: str):
+    """Turn a numba compile failure caused by the model's code into :func:`numba_failure`'s one-line
+    InputError (other exceptions pass unchanged)."""
+    try:
+        yield
+    except Exception as exc:
+        if backend != "numba" or not type(exc).__module__.startswith("numba"):
+            raise
+        named = numba_failure(model, y, u, exc)
+        if named is None:
+            raise
+        raise named from exc

@@ -1,0 +1,134 @@
+"""The model contract checked once before a run: a mistake in a user's model is one line naming
+the model and the function, the same on both backends."""
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import pfbench
+from pfbench.cli import main
+from pfbench.errors import InputError
+from pfbench.models.base import StateSpaceModel
+
+
+class Good(StateSpaceModel):
+    name = "good"
+    n_x, n_y, n_noise = 1, 1, 1
+
+    def params(self):
+        return (1.0,)
+
+    @staticmethod
+    def initial(rng, n, p):
+        return rng.standard_normal((n, 1))
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        return 0.9 * x + noise
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        return -0.5 * (y[0] - x[:, 0]) ** 2
+
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        return x + noise
+
+
+class WideTransition(Good):
+    name = "wide"
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        return x[:, :1] + noise[:, 0]          # broadcasts to (n, n): numba ran it silently
+
+
+class ColumnLoglik(Good):
+    name = "column"
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        return -0.5 * (y[0] - x[:, :1]) ** 2   # (n, 1): passed on NumPy, failed on numba
+
+
+class Raises(Good):
+    name = "raises"
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        raise ZeroDivisionError("boom in the user's code")
+
+
+class NoStatic(Good):
+    name = "nostatic"
+
+    def transition(x, u, t, noise, p):          # forgot @staticmethod
+        return x + noise
+
+
+class NumbaCannot(Good):
+    name = "numbacannot"
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        out = []                                  # a list of floats appended in a loop: fine in Python,
+        for v in x[:, 0]:                         # but a reflected list of an object numba cannot type
+            out.append(object())
+        return -0.5 * (y[0] - x[:, 0]) ** 2
+
+
+Y = np.zeros((5, 1))
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("model, needle", [
+    (WideTransition(), "transition() must return a float array of shape (3, 1), got shape (3, 3)"),
+    (ColumnLoglik(), "log_likelihood() must return a float array of shape (3,), got shape (3, 1)"),
+    (Raises(), "transition() raised ZeroDivisionError: boom in the user's code"),
+    (NoStatic(), "transition must be a @staticmethod"),
+])
+def test_contract_mistakes_are_one_line_on_both_backends(model, needle, backend):
+    """Catches the check skipped on one backend, or a message that does not name the function."""
+    with pytest.raises(InputError) as err:
+        pfbench.run_filter(model, Y, n_particles=10, backend=backend)
+    assert needle in str(err.value) and f"model {model.name!r}" in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_good_model_passes_and_simulate_checks_too():
+    res = pfbench.run_filter(Good(), Y, n_particles=10, backend="numpy")
+    assert res.estimates.shape == (5, 1)
+    with pytest.raises(InputError, match="transition must be a @staticmethod"):
+        NoStatic().simulate(3)
+
+
+def test_code_numba_cannot_compile_is_named():
+    """The numba kernel fails to type the model; the error names log_likelihood (compiled alone to
+    find it), not a pfbench internal error. NumPy runs the same model."""
+    model = NumbaCannot()
+    pfbench.run_filter(model, Y, n_particles=10, backend="numpy")
+    with pytest.raises(InputError) as err:
+        pfbench.run_filter(model, Y, n_particles=10, backend="numba")
+    assert "model 'numbacannot': numba cannot compile log_likelihood()" in str(err.value)
+
+
+def test_run_warns_of_a_non_finite_log_likelihood_with_its_first_step(tmp_path):
+    """A NaN likelihood used to end in loglik -inf, exit 0, without a word."""
+    f = tmp_path / "nanll.py"
+    f.write_text(
+        "import numpy as np\n"
+        "from pfbench.models import register\n"
+        "from pfbench.models.base import StateSpaceModel\n"
+        "@register('nanll')\n"
+        "class NanLL(StateSpaceModel):\n"
+        "    n_x, n_y, n_noise = 1, 1, 1\n"
+        "    def params(self):\n        return (1.0,)\n"
+        "    @staticmethod\n    def initial(rng, n, p):\n        return rng.standard_normal((n, 1))\n"
+        "    @staticmethod\n    def transition(x, u, t, noise, p):\n        return x + noise\n"
+        "    @staticmethod\n    def log_likelihood(y, x, u, t, p):\n"
+        "        return np.where(t >= 3, np.nan, -0.5 * (y[0] - x[:, 0]) ** 2)\n"
+        "    @staticmethod\n    def observe(x, u, t, noise, p):\n        return x + noise\n")
+    r = CliRunner().invoke(main, ["--models", str(f), "run", "--model", "nanll", "--particles", "20",
+                                  "--steps", "6", "--backend", "numpy"])
+    assert r.exit_code == 0, r.output
+    [warn] = [ln for ln in r.stderr.splitlines() if ln.startswith("warning:")]
+    assert "from step 3 on" in warn
