@@ -31,7 +31,7 @@ import click
 
 from .errors import PfbenchError
 from .filters.inputs import BACKENDS, DTYPES
-from .filters.methods import METHODS
+from .filters.methods import ESTIMATES, METHODS
 from .options import parse_key_values
 from .resampling import SCHEMES
 
@@ -213,6 +213,9 @@ def truth_stream(seed: int):
 @click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
 @click.option("--ess-threshold", type=float, default=None,
               help="sir / guided: resample when N_eff < this fraction of N_p, in (0, 1] (default 0.5).")
+@click.option("--estimate", type=click.Choice(ESTIMATES), default="pre", show_default=True,
+              help="Point estimate of a step: pre (weighted, before resampling) or post (the resampled "
+                   "particles, as [MultiPDF] Alg. 1-2; particle methods only).")
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
 @click.option("--dtype", type=click.Choice(DTYPES), default="float64", show_default=True)
 @click.option("--threads", type=int, default=None, callback=positive_int("threads"),
@@ -230,8 +233,8 @@ def truth_stream(seed: int):
               help="Write the per-step estimates, variances, ESS and log-likelihood increments to this "
                    ".csv or .parquet file (and the run's provenance to <file>.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-def run(model_name, method, particles, filters, steps, resampling, ess_threshold, backend, dtype, threads,
-        seed, truth_seed, params, data, out_file, as_json):
+def run(model_name, method, particles, filters, steps, resampling, ess_threshold, estimate, backend, dtype,
+        threads, seed, truth_seed, params, data, out_file, as_json):
     """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
     import numpy as np
 
@@ -264,14 +267,14 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         traj = model.simulate(steps, seed=truth_stream(seed) if truth_seed is None else truth_seed)
     res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
                      resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
-                     seed=seed, n_threads=threads)
+                     seed=seed, n_threads=threads, estimate=estimate)
     have_truth = bool(np.all(np.isfinite(traj.x)))
     out = {
         "model": name, "params": kw, "method": method, "backend": backend, "dtype": dtype,
         "n_particles": res.n_particles, "n_filters": res.n_filters, "n_steps": traj.n_steps,
         "seed": seed, "truth_seed": None if data else (truth_seed if truth_seed is not None else
                                                       f"derived from --seed {seed} ({TRUTH_STREAM})"),
-        "resampling": resampling,
+        "resampling": resampling, "estimate": estimate,
         "armse": metrics.armse(res.estimates, traj.x) if have_truth else None,
         "rmse": metrics.rmse(res.estimates, traj.x).tolist() if have_truth else None,
         "loglik": res.loglik, "n_resampled": res.n_resampled,

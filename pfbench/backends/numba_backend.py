@@ -40,7 +40,7 @@ import numpy as np
 
 from ..io import write_text
 from ..procs import free_cores
-from ..filters.methods import Method
+from ..filters.methods import Estimate, Method
 from ..resampling import Scheme
 from . import cache, compile_helper, native_call, pcg64
 
@@ -256,7 +256,7 @@ def warm_up(model, p, y, u, dtype, scheme=0, parallel: bool = False) -> None:
 
 def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess, inc, resampled,
               degen, hist_x=None, hist_w=None, *, brngs=None, n_threads: int | None = 1,
-              block: int | None = None) -> None:
+              block: int | None = None, estimate: str = "pre") -> None:
     """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL).
 
     ``brngs``: the stream-block generators (:func:`pfbench.backends.numpy_backend.block_streams`;
@@ -264,7 +264,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     :data:`pfbench.backends.numpy_backend.BLOCK`; the layout is
     :func:`~pfbench.backends.numpy_backend.block_bounds`). With more than one block and
     ``n_threads`` != 1 the block loops run on ``n_threads`` numba threads (None: all); results do
-    not depend on the thread count.
+    not depend on the thread count. ``estimate``: ``pre`` or ``post`` (the kernel's ``post`` flag).
     """
     import warnings
 
@@ -287,7 +287,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     draw_initial(model.kernel_functions()["initial"], p, rng, work[0][0])
     args = [p, rng, brngs, y, u, x, int(model.n_noise), int(method),
             int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
-            *work, 0, 0, 0]
+            *work, Estimate.parse(estimate) == Estimate.POST, 0, 0, 0]
     parallel = len(brngs) > 1 and n_threads != 1
     driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list

@@ -24,6 +24,10 @@ C. resampling: systematic and stratified as a merge that writes the resampled pa
    into the second particle buffer (the buffers swap; no index array, no copy back;
    :func:`pfbench.backends.numba_resampling.merge_gather`); multinomial and residual draw indices
    (``_resample``) and gather.
+D. ``estimate="post"`` only, at a step that resampled: the unweighted sums of the resampled
+   particles per block (:func:`pfbench.backends.numba_weights.block_moments`), reduced in block
+   order as pass B's sums are, replace the step's ``est``/``var`` ([MultiPDF] Alg. 1 step 6). A
+   fourth touch of the particles that the default ``pre`` never makes.
 
 Every loop over a block or a tile runs over views that start at 0 (``la[s:e]``, then
 ``las[i]``), not over ``range(s, e)`` on the whole array: numba gives a negative index its
@@ -108,6 +112,7 @@ from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
 from pfbench.backends.numba_resampling import ESTIMATE_TILE as _ESTIMATE_TILE
+from pfbench.backends.numba_weights import block_moments as _block_moments
 from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
@@ -353,6 +358,22 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
 
 
 @_register_jitable
+def _moments(bsx, bsxx, nb, total, xs, est, var, g, t):
+    """est[g, t] and var[g, t] from the per-block sums of w x and w (x - x_0)^2 (x_0 = ``xs[0]``,
+    the shift the blocks used), added in block order, over the total weight ``total``."""
+    for c in range(xs.shape[1]):
+        sx = 0.0
+        sxx = 0.0
+        for b in range(nb):
+            sx += bsx[b, c]
+            sxx += bsxx[b, c]
+        mean = sx / total
+        d = mean - _np.float64(xs[0, c])
+        est[g, t, c] = mean
+        var[g, t, c] = max(sxx / total - d * d, 0.0)
+
+
+@_register_jitable
 def _max(a, m):
     """max(m, max(a)) for ``a`` without NaN: four running maxima, so the comparisons do not wait
     on each other (a max is exact in any order; LLVM does not vectorise the reduction itself)."""
@@ -382,7 +403,7 @@ def _max(a, m):
 
 
 def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,
-               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate, pass_a_address,
+               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate, post, pass_a_address,
                pass_b_address, merge_address):
     """Run a group of G independent filters over all steps (random streams in documented order).
 
@@ -397,6 +418,9 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
     count. xs ... gstate: work arrays (:func:`pfbench.backends.numba_backend.work_arrays`), allocated
     by the caller because every array constructor compiled here is another 0.1 s of a cold start.
+    post: ``estimate="post"``: at a step that resamples, ``est``/``var`` are overwritten with the
+    unweighted moments of the resampled particles (pass D); a run-time flag, so one compilation
+    serves both and the default path only tests it at the steps that resample.
     pass_a_address, pass_b_address, merge_address: the native entry points of ``_pass_a``,
     ``_pass_b`` and ``_merge_gather`` for the argument types of their calls here
     (:func:`pfbench.backends.numba_backend.pass_a_types`, ``pass_b_types``, ``merge_types``;
@@ -481,16 +505,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                     s2 = 0.0
                     for b in range(nb):
                         s2 += bs2[b]
-                    for c in range(n_x):
-                        sx = 0.0
-                        sxx = 0.0
-                        for b in range(nb):
-                            sx += bsx[b, c]
-                            sxx += bsxx[b, c]
-                        mean = sx / total
-                        d = mean - _np.float64(src[0, c])
-                        est[g, t, c] = mean
-                        var[g, t, c] = max(sxx / total - d * d, 0.0)
+                    _moments(bsx, bsxx, nb, total, src, est, var, g, t)
                     e = total * total / s2
                     ess[g, t] = e
                     do = method == _BOOTSTRAP or (method == _SIR and e < ess_threshold)
@@ -521,6 +536,11 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             _gather(idx, bounds[b], bounds[b + 1], src, dst, lam_all, lam, fs)
                     cur[g] = 1 - cur[g]
                     flat[g] = 1
+                    if post and not fs:  # estimate="post" ([MultiPDF] Alg. 1 step 6): pass D
+                        new = xs[cur[g], g]
+                        for b in _prange(nb):
+                            _block_moments(new, bounds[b], bounds[b + 1], _np.int64(b), bsx, bsxx)
+                        _moments(bsx, bsxx, nb, _np.float64(n), new, est, var, g, t)
                 elif not fs:
                     _normalised_log_weights(la, total, lwg)
                     flat[g] = 0

@@ -151,6 +151,58 @@ def block_weights(la, m, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
             bsxx[b, c] = 0.0
 
 
+@njit(nogil=True, error_model="numpy")
+def block_moments(xs, i0, i1, b, bsx, bsxx):
+    """The particle kernel's ``estimate="post"`` pass on [i0, i1) of block ``b`` of the resampled
+    particles ``xs``: the block's unweighted sums of x and (x - x_0)^2 per component into ``bsx[b]``
+    and ``bsxx[b]`` (x_0: the filter's particle 0, the shift of :func:`block_weights`), reduced in
+    block order by the driver as the weighted sums are, with N_p for the total weight. Not called
+    on the default ``pre`` path."""
+    x = xs[i0:i1]  # a view that starts at 0 (see block_weights)
+    for c in range(xs.shape[1]):
+        bsx[b, c], bsxx[b, c] = _usums4(x[:, c], np.float64(xs[0, c]))
+
+
+@register_jitable
+def _usums4(v, shift):
+    """(sum v_i, sum (v_i - shift)^2) with four partial sums each (:func:`_sums4` without weights)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    q0 = 0.0
+    q1 = 0.0
+    q2 = 0.0
+    q3 = 0.0
+    n = v.shape[0]
+    i = 0
+    while i + 4 <= n:
+        v0 = np.float64(v[i])
+        v1 = np.float64(v[i + 1])
+        v2 = np.float64(v[i + 2])
+        v3 = np.float64(v[i + 3])
+        s0 += v0
+        s1 += v1
+        s2 += v2
+        s3 += v3
+        d0 = v0 - shift
+        d1 = v1 - shift
+        d2 = v2 - shift
+        d3 = v3 - shift
+        q0 += d0 * d0
+        q1 += d1 * d1
+        q2 += d2 * d2
+        q3 += d3 * d3
+        i += 4
+    while i < n:
+        v0 = np.float64(v[i])
+        d0 = v0 - shift
+        s0 += v0
+        q0 += d0 * d0
+        i += 1
+    return (s0 + s1) + (s2 + s3), (q0 + q1) + (q2 + q3)
+
+
 @register_jitable
 def _sums4(w, v, shift):
     """(sum w_i v_i, sum w_i (v_i - shift)^2) over the block in one pass over ``w`` and ``v``, each

@@ -36,7 +36,7 @@ import numpy as np
 
 from .. import resampling
 from .fastexp import exp_array as exp_weights
-from ..filters.methods import Method
+from ..filters.methods import Estimate, Method
 
 
 def _clean(ll) -> np.ndarray:
@@ -153,10 +153,12 @@ def draw_initial(initial, p, rng, x) -> None:
 
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
               est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None, *, brngs=None,
-              n_threads=None, block: int | None = None) -> None:
+              n_threads=None, block: int | None = None, estimate: str = "pre") -> None:
     """NumPy twin of the numba ``run_group``; fills the output arrays in place (``hist_x``/``hist_w``:
     the weighted particles of every step, when given with M rows). ``brngs``: the stream-block
-    generators (:func:`block_streams`; None: one block); ``n_threads`` is ignored."""
+    generators (:func:`block_streams`; None: one block); ``n_threads`` is ignored. ``estimate``:
+    ``pre`` (``est``/``var``: the weighted moments before resampling) or ``post`` (at a step that
+    resamples, the unweighted moments of the resampled particles; see :func:`pfbench.run_filter`)."""
     store = hist_x is not None and hist_x.shape[1] > 0
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
@@ -168,6 +170,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
         blocks, brngs = _blocks(n, int(block or BLOCK)), list(brngs)
         if len(brngs) != len(blocks):
             raise ValueError(f"{len(brngs)} block streams for {len(blocks)} blocks")  # a caller bug
+    post = Estimate.parse(estimate) == Estimate.POST
     ptype = x.dtype  # float32 particles: float32 normals and storage, model arithmetic in float64
     n_noise = model.n_noise
     logn = np.log(n)
@@ -212,6 +215,11 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             if do:
                 xg[:] = xg[_resample_into(scheme, wu, cdf, rng, brngs, blocks)]
                 lw[g] = -logn
+                if post:  # [MultiPDF] Alg. 1 step 6: the estimate of the resampled particles
+                    xf = xg.astype(np.float64)
+                    mean = xf.mean(axis=0)
+                    est[g, t] = mean
+                    var[g, t] = ((xf - mean) ** 2).mean(axis=0)
             else:
                 lw[g] = normalised_log_weights(wu, total)
             resampled[g, t] = do

@@ -48,3 +48,23 @@ _FAMILY = {Method.MPF: "mpf", Method.GUIDED: "guided", Method.KALMAN: "kalman"}
 METHODS = Method.labels()
 #: the methods the bootstrap-family particle kernel runs
 PARTICLE_METHODS = tuple(m.label for m in Method if m.family == "particle")
+
+
+class Estimate(Choice):
+    """Where the particle filters take the point estimate (mean and variance) of a step.
+
+    ===== ==========================================================================================
+    pre   the weighted mean/variance of the weighted particles, before the step's resampling
+    post  the unweighted mean/variance of the resampled particles, after it ([MultiPDF] Alg. 1
+          step 6, Alg. 2 step 2e); the same as ``pre`` at a step that does not resample
+    ===== ==========================================================================================
+    """
+
+    PRE = 0
+    POST = 1
+
+
+Estimate._what = "estimate"
+
+#: estimate names in table order
+ESTIMATES = Estimate.labels()

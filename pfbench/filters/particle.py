@@ -15,9 +15,10 @@ same generators, so both backends give the same estimates.
   for a given (seed, N_f), and still identical across backends.
 
 MultiPDF ([MultiPDF] Alg. 2): N_f independent bootstrap sub-filters with round(N_p / N_f)
-particles each; the estimate at every step is the mean of the sub-filter estimates (eq. 9), the
-variance is the law of total variance over the sub-filters, and ``loglik`` is the log of the mean
-of the sub-filters' (unbiased) likelihood estimates, with increments that sum to it. When
+particles each; the estimate at every step is the mean of the sub-filter estimates (eq. 9; each
+taken before or after resampling, ``run_filter``'s ``estimate``), the variance is the law of
+total variance over the sub-filters, and ``loglik`` is the log of the mean of the sub-filters'
+(unbiased) likelihood estimates, with increments that sum to it. When
 round(N_p / N_f) * N_f differs from N_p, ``n_particles`` reports the particles actually used and
 ``info["n_particles_requested"]`` the request (each sub-filter is off by at most half a particle).
 
@@ -43,7 +44,7 @@ from ..errors import InputError
 from ..procs import free_cores
 from ..resampling import Scheme
 from .inputs import ARRAY_BACKENDS, check_backend, check_dtype, ess_count, seed_sequence
-from .methods import Method
+from .methods import Estimate, Method
 from .result import FilterResult, mixture_loglik_increments, total_variance
 
 
@@ -63,11 +64,12 @@ def split_particles(n_particles: int, n_filters: int) -> int:
 def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: int = 1,
                  resampling="systematic", ess_threshold=None, backend: str = "numba",
                  dtype: str = "float64", seed=0, common_random_numbers: bool = False,
-                 n_threads: int | None = None, store_particles: bool = False,
+                 n_threads: int | None = None, store_particles: bool = False, estimate: str = "pre",
                  _block: int | None = None) -> FilterResult:
     """Run a bootstrap-family filter on validated ``y``/``u`` (see :func:`pfbench.run_filter`)."""
     method = Method.parse(method)
     scheme = Scheme.parse(resampling)
+    estimate = Estimate.parse(estimate).label
     check_backend(backend)
     check_dtype(dtype)
     if method != Method.MULTIPDF and n_filters != 1:
@@ -80,6 +82,9 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     thr = ess_count(ess_threshold, n_per)
     extra = {}
     if backend in ARRAY_BACKENDS:  # the array-namespace kernel: NumPy (xp-numpy) or a GPU (cupy)
+        if estimate == Estimate.POST.label:
+            raise InputError(f"estimate='post' is not available on backend {backend!r} (use 'pre', or "
+                             f"backend 'numpy' or 'numba')")
         from ..backends import cupy_backend
 
         out, elapsed, extra = cupy_backend.run_groups(
@@ -91,14 +96,15 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
         rngs = streams(seed, n_filters, common_random_numbers)
         out, elapsed = run_groups(model, y, u, rngs, method=method, n_per=n_per, n_filters=n_filters,
                                   resampling=scheme, ess_threshold=thr, backend=backend, dtype=dtype,
-                                  n_threads=n_threads, store_particles=store_particles, block=_block)
+                                  n_threads=n_threads, store_particles=store_particles, estimate=estimate,
+                                  block=_block)
         n_streams = len(rngs)
     est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
-            "resampling": scheme.label, "common_random_numbers": bool(common_random_numbers),
-            "n_streams": n_streams, **extra}
+            "resampling": scheme.label, "estimate": estimate,
+            "common_random_numbers": bool(common_random_numbers), "n_streams": n_streams, **extra}
     if n_per * n_filters != n_particles:
         info["n_particles_requested"] = n_particles
         info["note"] = (f"N_p = {n_particles} does not split evenly into {n_filters} sub-filters: "
@@ -115,7 +121,7 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
 
 def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampling,
                ess_threshold: float, backend: str, dtype: str = "float64", n_threads: int | None = None,
-               store_particles: bool = False, block: int | None = None):
+               store_particles: bool = False, estimate: str = "pre", block: int | None = None):
     """Run ``n_filters`` filters of ``n_per`` particles on validated, contiguous ``y``/``u``.
 
     The filters are split evenly over the random streams ``rngs`` (one group per stream, see
@@ -125,6 +131,9 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     :class:`Method` (MultiPDF sub-filters run as bootstrap), ``resampling`` a :class:`Scheme` and
     ``ess_threshold`` a particle count. ``store_particles`` adds ``particles`` (N_f, M, n, n_x) and
     ``weights`` (N_f, M, n), the normalised weighted particles of every step before resampling.
+    ``estimate``: ``pre`` or ``post`` (an :class:`~pfbench.filters.methods.Estimate` name, see
+    :func:`pfbench.run_filter`); ``post`` is handed to the backend's ``run_group`` as
+    ``estimate="post"`` (``pre`` is not passed: the backends' default).
     ``block``: the largest stream block (default :data:`pfbench.backends.numpy_backend.BLOCK`;
     :func:`~pfbench.backends.numpy_backend.block_bounds` gives the layout; a run with one block is
     the single-stream filter, see :mod:`pfbench.backends.numba_particle`).
@@ -151,6 +160,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     code = int(Method.BOOTSTRAP if method == Method.MULTIPDF else method)  # MultiPDF sub-filters
     scheme = int(Scheme.parse(resampling))
     block = int(block or BLOCK)
+    at = {"estimate": "post"} if Estimate.parse(estimate) == Estimate.POST else {}
     workers = min(n_groups, n_threads or free_cores())
     pooled = n_groups > 1 and backend == "numba" and workers > 1
     # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
@@ -163,7 +173,8 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
         sl = slice(gi * per_group, (gi + 1) * per_group)
         be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, ess_threshold, out["est"][sl],
                      out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl],
-                     out["particles"][sl], out["weights"][sl], brngs=brngs[gi], n_threads=inner, block=block)
+                     out["particles"][sl], out["weights"][sl], brngs=brngs[gi], n_threads=inner, block=block,
+                     **at)
 
     t0 = time.perf_counter()
     if pooled:

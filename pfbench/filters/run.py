@@ -4,7 +4,7 @@ from __future__ import annotations
 from ..errors import InputError
 from ..models.contract import check_model, named_model_errors
 from .inputs import ARRAY_BACKENDS, check_inputs
-from .methods import Method
+from .methods import Estimate, Method
 from .result import FilterResult
 
 
@@ -23,7 +23,8 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
                n_filters: int = 1, resampling: str = "systematic", ess_threshold: float | None = None,
                backend: str = "numba", dtype: str = "float64", seed=0,
                common_random_numbers: bool = False, n_threads: int | None = None,
-               store_particles: bool = False, _block: int | None = None) -> FilterResult:
+               store_particles: bool = False, estimate: str = "pre",
+               _block: int | None = None) -> FilterResult:
     """Filter measurements ``y`` (M, n_y) with inputs ``u`` (M, n_u); returns a :class:`FilterResult`.
 
     Parameters
@@ -56,8 +57,25 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         instead (each on one thread). Results never depend on it.
     store_particles : particle family only: keep the weighted particles of every step (before
         resampling) in ``extras["particles"]`` (N_f, M, N, n_x) and ``extras["weights"]`` (N_f, M, N).
+    estimate : where a step's point estimate (``estimates``, ``variances``) is taken (an
+        :class:`~pfbench.filters.methods.Estimate` name; the particle methods record it in
+        ``info["estimate"]``).
+        ``pre`` (default): the weighted mean and variance of the weighted particles, before the
+        step's resampling. ``post``: the unweighted mean and variance of the particles after the
+        step's resampling, as [MultiPDF] Alg. 1-2 take it (Alg. 1 step 6 after step 5; Alg. 2 step
+        2e after 2d); MultiPDF averages the sub-filters' post estimates (eq. 9). At a step that does
+        not resample (SIR with N_eff >= the threshold, SIS always, ASIR always: its resampling comes
+        before the step's propagation) ``post`` is ``pre``. Resampling is unbiased, so ``post`` is
+        ``pre`` plus zero-mean resampling noise: same random numbers, same ``loglik``, ``ess`` and
+        trajectory. Particle methods only: ``post`` with mpf, guided or kalman is an InputError,
+        as is ``post`` on the array backends (``cupy``, ``xp-numpy``).
     """
     m = Method.parse(method)
+    est_at = Estimate.parse(estimate)
+    if est_at == Estimate.POST and m.family != "particle":
+        raise InputError(f"estimate='post' applies to the particle methods "
+                         f"({', '.join(l for l in Method.labels() if Method.parse(l).family == 'particle')}), "
+                         f"not {m.label!r}")
     if n_particles is None:
         if m.family != "kalman":
             raise InputError(f"method {m.label!r} needs n_particles")
@@ -77,7 +95,8 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
             return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
                                 resampling=resampling, ess_threshold=ess_threshold, backend=backend,
                                 dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
-                                n_threads=n_threads, store_particles=store_particles, _block=_block)
+                                n_threads=n_threads, store_particles=store_particles, estimate=est_at.label,
+                                _block=_block)
         if n_filters != 1:
             raise InputError(f"n_filters={n_filters} needs method='multipdf'")
         if backend in ARRAY_BACKENDS:

@@ -14,7 +14,7 @@ from pathlib import Path
 import click
 
 from ..errors import DataError, InputError
-from ..filters.methods import METHODS
+from ..filters.methods import ESTIMATES, METHODS
 from ..options import check_known, comma_list, parse_key_values, typed
 
 
@@ -72,6 +72,10 @@ _OPTIONS = [
     click.option("--runs", type=int, default=None, help="Monte Carlo runs per configuration."),
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
     click.option("--backend", default=None, help="numba (default), numpy or cupy (a GPU)."),
+    click.option("--estimate", type=click.Choice(ESTIMATES), default=None,
+                 help="Point estimate of a step: pre (default; weighted, before resampling) or post "
+                      "(the resampled particles, [MultiPDF] Alg. 1-2) for the particle methods; mpf, "
+                      "guided and kalman keep their own."),
     click.option("--seed", type=int, default=None, help="Root seed, an integer >= 0 (default 0)."),
     click.option("--out", default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl; "
                                              "one sweep at a time may write it."),
@@ -92,7 +96,7 @@ def _with_options(f):
 
 #: keys a grid file may hold (the options above, plus ``params`` as a mapping)
 GRID_KEYS = ("model", "param", "params", "particles", "filters", "method", "runs", "steps",
-             "backend", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
+             "backend", "estimate", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
 
 
 def _do_run(kw: dict) -> None:
@@ -123,7 +127,7 @@ def _do_run(kw: dict) -> None:
                      runs=typed(opts.get("runs", 10), int, "--runs"),
                      steps=typed(opts.get("steps", 100), int, "--steps"),
                      seed=typed(opts.get("seed", 0), int, "--seed"),
-                     backend=str(opts.get("backend", "numba")))
+                     backend=str(opts.get("backend", "numba")), estimate=str(opts.get("estimate", "pre")))
     try:
         workers = opts.get("workers")
         rep = run_sweep(spec, opts["out"], workers=None if workers is None else typed(workers, int, "--workers"),

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..filters.inputs import check_backend
-from ..filters.methods import METHODS, Method
+from ..filters.methods import METHODS, Estimate, Method
 
 #: the method's part of a filter seed's spawn key. Never change an entry: it would change every
 #: stored sweep's numbers. New methods take new numbers.
@@ -45,14 +45,20 @@ SPEC_VERSION = 1
 
 def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), methods=("multipdf",),
               runs: int = 10, steps: int = 100, seed: int = 0, backend: str = "numba",
-              params: dict | None = None, resampling: str = "systematic") -> dict:
+              params: dict | None = None, resampling: str = "systematic", estimate: str = "pre") -> dict:
     """A normalised sweep specification (a plain JSON-able dict).
 
     ``model`` is a model spec (``"ob3:v4"`` = ``"ob3"`` with ``params={"version": 4}``; the spec
     stores the name and the parameters). ``configs``: explicit list of (method, n_particles,
     n_filters); otherwise the product methods x particles x filters (only multipdf uses N_f > 1).
     ``methods`` are :class:`pfbench.Method` names; a method the model does not support is an
-    error here (see :func:`check_supported`).
+    error here (see :func:`check_supported`). ``resampling`` holds for every configuration,
+    ``estimate`` (``pre`` or ``post``, see :func:`pfbench.run_filter`) for those of the particle
+    methods: mpf, guided and kalman configurations take their own estimate (the marginalized PF's
+    weighted one before resampling, [Schon2005] Alg. 1), so a MultiPDF-vs-MPF sweep can run
+    MultiPDF with ``post`` (:func:`estimate_for`). The filter seeds do not depend on ``estimate``,
+    so a ``pre`` and a ``post`` sweep with the same seed run the same filters on the same random
+    numbers (paired); a spec without ``estimate`` (an older store) means ``pre``.
     """
     from .. import models
     from ..resampling import Scheme
@@ -84,6 +90,7 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or int(seed) < 0:
         raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
+    estimate = Estimate.parse(estimate).label
     from ..filters.inputs import ARRAY_BACKENDS
 
     if backend in ARRAY_BACKENDS:  # before any work: the methods it runs, and a GPU for cupy
@@ -91,12 +98,15 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
 
         for m, _, _ in out:
             array_backend.check_supported(Method.parse(m), Scheme.parse(resampling), backend)
+        if estimate == Estimate.POST.label:
+            raise InputError(f"--estimate post is not available on backend {backend!r} (use pre, or "
+                             f"backend numpy or numba)")
         if backend == "cupy":
             cupy_backend.import_cupy()
     resampling = Scheme.parse(resampling).label
     spec = {"spec_version": SPEC_VERSION, "model": model, "params": params, "configs": out,
             "runs": int(runs), "steps": int(steps), "seed": int(seed), "backend": backend,
-            "resampling": resampling, "code": code_fingerprint(model)}
+            "resampling": resampling, "estimate": estimate, "code": code_fingerprint(model)}
     check_supported(spec)
     return spec
 
@@ -115,7 +125,18 @@ def check_supported(spec: dict) -> None:
     traj = model.simulate(2, seed=0)
     for m in dict.fromkeys(c[0] for c in spec["configs"]):
         run_filter(model, traj.y, traj.u, method=m, n_particles=2, backend="numpy",
-                   resampling=spec["resampling"], seed=0)
+                   resampling=spec["resampling"], estimate=estimate_for(spec, m), seed=0)
+
+
+def estimate_of(spec: dict) -> str:
+    """The spec's ``estimate`` (``pre`` for a spec written before the option existed)."""
+    return spec.get("estimate", "pre")
+
+
+def estimate_for(spec: dict, method: str) -> str:
+    """The estimate a configuration of ``method`` runs with: the spec's for the particle methods,
+    ``pre`` (the method's own) for mpf, guided and kalman."""
+    return estimate_of(spec) if Method.parse(method).family == "particle" else "pre"
 
 
 def code_fingerprint(model: str) -> str:
@@ -156,10 +177,10 @@ def filter_seed(spec: dict, config, run: int) -> np.random.SeedSequence:
 
 # --------------------------------------------------------------------------- filtering
 def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: int, seed,
-                        backend: str = "numba", resampling: str = "systematic"):
+                        backend: str = "numba", resampling: str = "systematic", estimate: str = "pre"):
     """Estimates of a particle-family method (bootstrap, sir, sis, asir, multipdf), equal to
-    ``pfbench.run_filter(..., method=method)`` (same streams, kernels and default ESS threshold)
-    but without its per-call thread pool. Returns (est, sub_est)."""
+    ``pfbench.run_filter(..., method=method, estimate=estimate)`` (same streams, kernels and
+    default ESS threshold) but without its per-call thread pool. Returns (est, sub_est)."""
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
@@ -168,6 +189,8 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     m = Method.parse(method)
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
     if backend in ARRAY_BACKENDS:  # cupy: the array-namespace kernel, its own Philox draws
+        if Estimate.parse(estimate) == Estimate.POST:
+            raise InputError(f"estimate='post' is not available on backend {backend!r}")
         from ..backends.cupy_backend import run_groups as run_array
         from ..filters.inputs import seed_sequence
 
@@ -177,7 +200,8 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     else:
         out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
                             n_filters=n_filters, resampling=resampling,
-                            ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1)
+                            ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1,
+                            estimate=estimate)
     est = out["est"]
     return est.mean(axis=0), est
 
@@ -218,7 +242,7 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         t0 = time.perf_counter()
         if Method.parse(m).family == "particle":
             est, _ = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
-                                         spec["resampling"])
+                                         spec["resampling"], estimate_for(spec, m))
         else:
             est = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
                              seed=seed, resampling=spec["resampling"]).estimates

@@ -171,13 +171,19 @@ class Store:
 
     # ----- views -----------------------------------------------------------------------
     def frame(self) -> pd.DataFrame:
-        """One row per finished task, sorted by (config, run)."""
+        """One row per finished task, sorted by (config, run); ``estimate`` is the one the task ran
+        with (:func:`~pfbench.sweep.core.estimate_for`: ``pre`` for a store written before the
+        option existed)."""
+        from .core import estimate_for
+
         cols = ["config", "run", "method", "n_particles", "n_filters", "armse", "elapsed_s"]
         if not self.records:
-            return pd.DataFrame(columns=cols)
+            return pd.DataFrame(columns=cols[:5] + ["estimate"] + cols[5:])
         rows = []
         for r in self.records.values():
-            row = {k: r[k] for k in cols}
+            row = {k: r[k] for k in cols[:5]}
+            row["estimate"] = estimate_for(self.spec, r["method"])
+            row.update({k: r[k] for k in cols[5:]})
             for j, v in enumerate(r["rmse"]):
                 row[f"rmse_{j + 1}"] = v
             rows.append(row)
@@ -202,7 +208,12 @@ def load_frame(path) -> tuple[pd.DataFrame, dict, list]:
         if meta is None:
             raise DataError(f"{path} is not a pfbench sweep store (no sweep metadata)")
         info = json.loads(meta)
-        return table.to_pandas(), info["spec"], info.get("chunks", [])
+        frame = table.to_pandas()
+        if "estimate" not in frame.columns:  # exported before the option existed
+            from .core import estimate_for
+
+            frame.insert(5, "estimate", [estimate_for(info["spec"], m) for m in frame["method"]])
+        return frame, info["spec"], info.get("chunks", [])
     st = Store.read(path)
     return st.frame(), st.spec, st.chunks
 
