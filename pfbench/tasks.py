@@ -216,4 +216,8 @@ def _cli():
     return tasks_cmd
 
 
-tasks_cmd = _cli()
+def __getattr__(name):  # the click command, built on first use (`pfbench tasks`)
+    if name == "tasks_cmd":
+        globals()["tasks_cmd"] = cmd = _cli()
+        return cmd
+    raise AttributeError(name)

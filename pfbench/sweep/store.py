@@ -178,6 +178,8 @@ class Store:
         rows = []
         for r in self.records.values():
             row = {k: r[k] for k in cols}
+            for k in ("loglik", "seed", "seed_key"):  # since issue 32; older stores lack them
+                row[k] = r.get(k)
             for j, v in enumerate(r["rmse"]):
                 row[f"rmse_{j + 1}"] = v
             rows.append(row)
