@@ -32,8 +32,9 @@ Timing
 ------
 ``wall_s`` is measured around the call. For ``cmd:`` it includes the process start-up, which is
 measured once per worker process, task and contender by two probe runs on the first step of
-dataset 0 (their minimum is ``startup_s``); the filter's own time ``own_s`` is the program's
-self-reported ``"elapsed_s"`` when it gives one, else ``wall_s - startup_s``. For ``py:`` and
+dataset 0 (their minimum is ``startup_s``) when the program does not report its own time; the
+filter's own time ``own_s`` is the program's self-reported ``"elapsed_s"`` when it gives one
+(``startup_s`` is then ``wall_s - elapsed_s``, no probe), else ``wall_s - startup_s``. For ``py:`` and
 ``pfbench:`` ``own_s`` is the result's ``elapsed_s`` when it has one, else ``wall_s``.
 """
 from __future__ import annotations
@@ -323,6 +324,7 @@ class CmdContender(Contender):
                     walls.append(self._call(request(task, model, y1, u1, n_particles, 0), timeout)[1])
                 except RunFailed:
                     walls.append(float("nan"))
+                    break
             finite = [w for w in walls if np.isfinite(w)]
             self._startup[key] = min(finite) if finite else float("nan")
         return self._startup[key]

@@ -42,7 +42,9 @@ def markdown(summary: dict) -> str:
              f"{summary['runs']} runs per task and contender, N_p = {summary['n_particles']}; "
              f"baseline `{summary['baseline']}`. Intervals: 95 % t-intervals over runs; Δ: paired "
              "difference against the baseline on the runs both completed. Time: the filter's own "
-             "time per particle and step (median; per step for filters without particles).", ""]
+             "time per particle and step (median; per step for filters without particles). Log-lik bias: "
+             "mean of log L̂ - log L against the exact value, about -var/2 for an unbiased L̂; "
+             "L̂/L: its mean, 1 for an unbiased filter.", ""]
     for tname, t in summary["tasks"].items():
         key, label = accuracy_key(t)
         exact = t["reference"] == "exact-loglik"
@@ -55,7 +57,7 @@ def markdown(summary: dict) -> str:
             head += ["aRMSE [95 %]", "Δ aRMSE vs baseline [95 %]", "cov. 90 %"]
         head += ["log-lik mean", "log-lik sd"]
         if exact:
-            head += ["log-lik bias [95 %]"]
+            head += ["log-lik bias [95 %]", "L̂/L [95 %]"]
         head += ["ns / particle-step", "runs ok / failed"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for i, name in enumerate(_rank(t), 1):
@@ -70,7 +72,8 @@ def markdown(summary: dict) -> str:
                         "—" if cov is None else f"{100 * cov:.0f} %"]
             row += [_f(s["loglik"], ".6g"), _f(s["loglik_sd"], ".3g")]
             if exact:
-                row += [_f(s.get("loglik_bias"), ".3g") + _ci(s.get("loglik_bias_ci"))]
+                row += [_f(s.get("loglik_bias"), ".3g") + _ci(s.get("loglik_bias_ci")),
+                        _f(s.get("lik_ratio"), ".3g") + _ci(s.get("lik_ratio_ci"))]
             row += [_f(s["ns_per_particle_step"], ".3g"), f"{s['runs']} / {s['failed']}"]
             lines.append("| " + " | ".join(row) + " |")
         fails = [(n, s) for n, s in t["contenders"].items() if s["failed"] or s["missing"]]

@@ -4,6 +4,11 @@ Intervals are 95 % t-intervals of a mean over runs (:func:`pfbench.verdicts.t_in
 rule of the scorecard). A paired difference (contender - baseline) uses only the runs on which
 both completed; its verdict is ``lower`` / ``higher`` when the whole interval lies below / above
 zero and ``no difference at 95 %`` when it contains zero (the scorecard's :func:`direction` rule).
+
+Log-likelihood against an exact reference: ``loglik_bias`` is the mean of log L_hat - log L and
+``loglik_variance`` its variance over runs. A particle filter's likelihood estimate L_hat is
+unbiased, so its log has a bias of about -var/2 (Jensen) that vanishes as N_p grows; the check of
+unbiasedness is ``lik_ratio``, the mean of L_hat / L with its 95 % interval, which must contain 1.
 """
 from __future__ import annotations
 
@@ -68,6 +73,9 @@ def contender_stats(recs: list[dict], runs: int) -> dict:
         out["loglik_bias_ci"] = _ci(err)
         fe = err[np.isfinite(err)]
         out["loglik_variance"] = float(fe.var(ddof=1)) if fe.size > 1 else None
+        ratio = np.exp(np.clip(err, -700.0, 700.0))   # L_hat / L: an unbiased PF has mean 1
+        out["lik_ratio"] = _mean(ratio)
+        out["lik_ratio_ci"] = _ci(ratio)
         out["armse_vs_exact"] = _mean(_vals(ok, "armse_vs_exact"))
     out["coverage90"] = _mean(_vals(ok, "coverage90"))
     for k in ("ns_per_particle_step", "own_s", "wall_s", "startup_s", "overhead_s"):
