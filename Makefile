@@ -22,7 +22,7 @@ all: $(STAMP) .venv-particles/.installed-stamp
 # A quick leaderboard of the papers' objects: pfbench's methods and the `particles` library
 # (out of process, in .venv-particles) on the same datasets -> results/compare/leaderboard.md
 compare-quick: $(STAMP)
-	$(BIN)/pfbench compare --task ob1,ob2,ob3-v4,ob4,thermal --runs 5 --particles 500 --quiet \
+	$(BIN)/pfbench compare --task ob1,ob2,ob3-v4,thermal --runs 3 --particles 500 --quiet \
 		--out results/compare --contender pfbench:bootstrap --contender pfbench:sir \
 		--contender pfbench:multipdf:filters=5 --contender particles:bootstrap > /dev/null
 
