@@ -41,14 +41,12 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import importlib.util
 import json
 import os
 import re
 import shlex
 import shutil
 import subprocess
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -208,16 +206,13 @@ def _load_py(target: str, spec: str):
             raise InputError(f"--contender {spec}: file {target!r} does not exist")
         key = str(path.resolve())
         if key not in _PY_MODULES:
+            from ..models import import_path
+
             name = f"pfbench_user_contenders.m{hashlib.sha1(key.encode()).hexdigest()[:10]}_{path.stem}"
-            mspec = importlib.util.spec_from_file_location(name, key)
-            module = importlib.util.module_from_spec(mspec)
-            sys.modules[name] = module
             try:
-                mspec.loader.exec_module(module)
+                _PY_MODULES[key] = import_path(name, key)
             except Exception as exc:  # noqa: BLE001 - the user's code: one line
-                sys.modules.pop(name, None)
                 raise InputError(f"--contender {spec}: {target} failed to import: {exc_reason(exc)}") from None
-            _PY_MODULES[key] = module
         return _PY_MODULES[key]
     try:
         return importlib.import_module(target)
