@@ -9,14 +9,22 @@ STAMP  := $(VENV)/.installed-stamp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.cache/numba
 export MPLBACKEND := Agg
 
-.PHONY: all full venv test test-slow bench report mcu-tools clean
+.PHONY: all full venv test test-slow bench report mcu-tools clean compare-quick
 
 # `pfbench compile` first: every model's default `pfbench run` kernel, on all cores, so the first
 # run after setup loads its kernel instead of compiling it (the recipes reuse what they share).
-all: $(STAMP)
+all: $(STAMP) .venv-particles/.installed-stamp
 	$(BIN)/pfbench compile
 	$(BIN)/pfbench reproduce --all
 	$(BIN)/pfbench report
+	$(MAKE) compare-quick
+
+# A quick leaderboard of the papers' objects: pfbench's methods and the `particles` library
+# (out of process, in .venv-particles) on the same datasets -> results/compare/leaderboard.md
+compare-quick: $(STAMP)
+	$(BIN)/pfbench compare --task ob1,ob2,ob3-v4,thermal --runs 3 --particles 500 --quiet \
+		--out results/compare --contender pfbench:bootstrap --contender pfbench:sir \
+		--contender pfbench:multipdf:filters=5 --contender particles:bootstrap > /dev/null
 
 # Paper scale: every recipe with --full; resumes after an interruption (finished recipes whose
 # verified result matches this code and these settings are skipped).

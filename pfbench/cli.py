@@ -571,7 +571,8 @@ def info(as_json):
 
 #: subcommand groups that live next to their subsystem: name -> (module, attribute), imported on use
 SUBSYSTEMS = {"bench": ("pfbench.bench", "bench"), "mcu": ("pfbench.mcu.cli", "mcu"),
-              "sweep": ("pfbench.sweep.cli", "sweep")}
+              "sweep": ("pfbench.sweep.cli", "sweep"), "compare": ("pfbench.compare.cli", "compare"),
+              "tasks": ("pfbench.tasks", "tasks_cmd")}
 
 
 def _add_subsystem_command(name: str) -> None:

@@ -77,19 +77,30 @@ def load_files(paths) -> list[str]:
             continue
         before = set(_REGISTRY)
         name = f"pfbench_user_models.m{len(_FILES)}_{path.stem}"
-        spec = importlib.util.spec_from_file_location(name, key)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
         try:
-            spec.loader.exec_module(module)
+            import_path(name, key)
         except Exception as exc:  # noqa: BLE001 - the user's code: report it in one line
-            sys.modules.pop(name, None)
             first = (str(exc).strip().splitlines() or [""])[0]
             raise InputError(f"model file {str(raw)!r} failed to import: "
                              f"{type(exc).__name__}: {first}") from None
         _FILES[key] = name
         added += sorted(set(_REGISTRY) - before)
     return added
+
+
+def import_path(name: str, path: str):
+    """Import the file ``path`` as the module ``name`` (kept in ``sys.modules``, so worker
+    processes can find its objects again); on failure the module is removed and the exception
+    propagates. User model files and ``py:`` contenders are imported this way."""
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
+    return module
 
 
 def names() -> list[str]:

@@ -12,6 +12,10 @@ Seeds (numpy ``SeedSequence`` with spawn keys, derived from one root ``seed``):
   N_p / N_f comparisons sharper; the paper also draws a new truth per run);
 * filter of configuration c on run r: ``SeedSequence(seed, spawn_key=(1, key, N_p, N_f, r))``
   with ``key`` the method's entry in :data:`SEED_KEY` (fixed forever, so stores stay valid).
+  Every record keeps it (``seed`` and ``seed_key`` = the spawn key as ``"1.1.100.1.3"``) beside
+  the log-likelihood estimate ``loglik``, so the variance of the log-likelihood (what PMMH users
+  tune N_p by) can be read from a sweep and any run redone with ``pfbench.run_filter(...,
+  seed=SeedSequence(seed, spawn_key=...))``.
 
 So a task's result depends only on (spec, c, r): not on the worker count, the executor, the
 order of completion or on interruptions.
@@ -177,10 +181,12 @@ def filter_seed(spec: dict, config, run: int) -> np.random.SeedSequence:
 
 # --------------------------------------------------------------------------- filtering
 def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: int, seed,
-                        backend: str = "numba", resampling: str = "systematic", estimate: str = "pre"):
+                        backend: str = "numba", resampling: str = "systematic", estimate: str = "pre",
+                        want_loglik: bool = False):
     """Estimates of a particle-family method (bootstrap, sir, sis, asir, multipdf), equal to
     ``pfbench.run_filter(..., method=method, estimate=estimate)`` (same streams, kernels and
-    default ESS threshold) but without its per-call thread pool. Returns (est, sub_est)."""
+    default ESS threshold) but without its per-call thread pool. Returns (est, sub_est), and the
+    log-likelihood estimate as a third item with ``want_loglik``."""
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
@@ -203,6 +209,10 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
                             ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1,
                             estimate=estimate)
     est = out["est"]
+    if want_loglik:
+        from ..filters.result import mixture_loglik_increments
+
+        return est.mean(axis=0), est, float(mixture_loglik_increments(out["inc"]).sum())
     return est.mean(axis=0), est
 
 
@@ -241,17 +251,19 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         seed = filter_seed(spec, cfg, run)
         t0 = time.perf_counter()
         if Method.parse(m).family == "particle":
-            est, _ = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
-                                         spec["resampling"], estimate_for(spec, m))
+            est, _, ll = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
+                                             spec["resampling"], estimate_for(spec, m), want_loglik=True)
         else:
-            est = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
-                             seed=seed, resampling=spec["resampling"]).estimates
+            res = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
+                             seed=seed, resampling=spec["resampling"])
+            est, ll = res.estimates, float(res.loglik)
         dt = time.perf_counter() - t0
         r = rmse(est, traj.x)
         out.append({"key": task_key(ci, run), "config": int(ci), "run": int(run), "method": m,
                     "n_particles": int(n_p), "n_filters": int(n_f),
                     "armse": float(np.mean(r)), "rmse": [float(v) for v in r],
-                    "elapsed_s": dt})
+                    "elapsed_s": dt, "loglik": ll, "seed": int(spec["seed"]),
+                    "seed_key": ".".join(str(k) for k in seed.spawn_key)})
     return out
 
 

@@ -86,7 +86,8 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InputError(f"--workers must be an integer >= 1 (omit it to use all cores), got {workers!r}")
     check_store_name(out)
-    check_sweep_memory(spec, workers if executor == "local" else 1)
+    if spec.get("kind") is None:  # another kind of grid checks its own memory
+        check_sweep_memory(spec, workers if executor == "local" else 1)
     with exclusive_lock(out, f"sweep store {out}"):
         return _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, max_units)
 
@@ -121,7 +122,7 @@ def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, ma
         units = units[:max_units]
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=total, initial=before, unit="task", desc=f"sweep {spec['model']}",
+    bar = tqdm(total=total, initial=before, unit="task", desc=f"{spec.get('kind', 'sweep')} {spec.get('model', '')}",
                disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
     t0 = time.perf_counter()
 
@@ -135,10 +136,10 @@ def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, ma
             if not units:
                 pass
             elif executor == "local" and workers == 1:
-                warm_up(spec)
+                work(spec)[1](spec)
                 for r, cis in units:
                     t1 = time.perf_counter()
-                    recs = run_chunk(spec, r, cis)
+                    recs = work(spec)[0](spec, r, cis)
                     done(recs, time.perf_counter() - t1, "local-0")
             elif executor == "local":
                 _run_local(spec, units, workers, done)
@@ -158,16 +159,31 @@ def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, ma
 
 _WARM: set = set()
 
+#: other kinds of grid that run on this machinery (``spec["kind"]``): the module with their
+#: ``run_chunk(spec, run, config_indices)`` and ``warm_up(spec)``; a sweep spec has no kind
+KINDS = {"compare": "pfbench.compare.run"}
+
+
+def work(spec: dict):
+    """(run_chunk, warm_up) of ``spec``: a sweep's, or those of its ``kind`` (:data:`KINDS`)."""
+    kind = spec.get("kind")
+    if kind is None:
+        return run_chunk, warm_up
+    import importlib
+
+    mod = importlib.import_module(KINDS[kind])
+    return mod.run_chunk, mod.warm_up
+
 
 def _timed_chunk(spec, r, cis):
     from .core import spec_hash
 
     h = spec_hash(spec)
     if h not in _WARM:  # load the kernels outside the timed region (Dask workers)
-        warm_up(spec)
+        work(spec)[1](spec)
         _WARM.add(h)
     t1 = time.perf_counter()
-    recs = run_chunk(spec, r, cis)
+    recs = work(spec)[0](spec, r, cis)
     return recs, time.perf_counter() - t1, f"pid-{os.getpid()}"
 
 
@@ -178,7 +194,7 @@ def _run_local(spec, units, workers, done):
 
     todo = list(reversed(units))
     inflight = set()
-    with worker_pool(workers, mp_context=mp.get_context("spawn"), initializer=warm_up, initargs=(spec,)) as pool:
+    with worker_pool(workers, mp_context=mp.get_context("spawn"), initializer=work(spec)[1], initargs=(spec,)) as pool:
         while todo or inflight:
             while todo and len(inflight) < 2 * workers:
                 r, cis = todo.pop()
