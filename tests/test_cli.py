@@ -247,7 +247,7 @@ def test_unknown_option_lists_valid_keys(tmp_path):
     r = _invoke("reproduce", "thesis:fig2.3", "--out", str(tmp_path), "--option", "stpes=10")
     assert r.exit_code == 2
     line = _one_error_line(r.stderr)
-    assert "stpes" in line and "particles, steps, threshold" in line
+    assert "stpes" in line and "particles, runs, steps, threshold" in line
     assert not (tmp_path / "thesis").exists()          # refused before any work
 
 

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from ..models.contract import check_model, named_model_errors
+from ..models.contract import check_model, named_model_errors, needs_of
 from .inputs import ARRAY_BACKENDS, check_inputs
 from .methods import Estimate, Method
 from .result import FilterResult
@@ -83,7 +83,7 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     n_particles = _count(n_particles, "n_particles")
     n_filters = _count(n_filters, "n_filters")
     y, u = check_inputs(model, y, u)
-    check_model(model, y, u)   # a mistake in the model's code is one line naming it, on every backend
+    check_model(model, y, u, needs_of(m.family, m.label))   # a mistake in the model's code: one line
     from ..resources import check_filter_memory  # refuse before allocating what cannot fit
 
     check_filter_memory(model, m.label, n_particles, n_filters=n_filters, n_steps=y.shape[0], dtype=dtype,

@@ -256,7 +256,8 @@ class StateSpaceModel:
         u_arr = self.input_array(u, n_steps)
         from .contract import check_model   # the contract first: a mistake reads as one line
 
-        check_model(self, np.zeros((1, self.n_y)), u_arr[:1])
+        check_model(self, np.zeros((1, self.n_y)), u_arr[:1],
+                    {fn: "simulate()" for fn in ("initial", "transition", "observe")})
         x = np.asarray(self.initial(rng, 1, p), dtype=np.float64).reshape(1, self.n_x)
         x0 = x[0].copy()
         xs = np.empty((n_steps, self.n_x))

@@ -36,14 +36,29 @@ def _name(model) -> str:
     return str(getattr(model, "name", None) or type(model).__name__)
 
 
-def _check_static(model) -> None:
+def defined(model) -> set:
+    """The contract functions the model's class defines (not the base class's abstract ones)."""
+    from .base import StateSpaceModel
+
+    def plain(f):
+        return f.__func__ if isinstance(f, staticmethod) else f
+
+    return {fn for fn in FUNCTIONS if plain(inspect.getattr_static(type(model), fn, None))
+            is not plain(inspect.getattr_static(StateSpaceModel, fn))}
+
+
+def _check_static(model, needs) -> set:
+    have = defined(model)
     for fn in FUNCTIONS:
-        attr = inspect.getattr_static(type(model), fn, None)
-        if attr is None:
-            raise InputError(f"model {_name(model)!r} has no {fn}() (see `pfbench.models.base`)")
-        if not isinstance(attr, staticmethod):
+        if fn not in have:
+            if fn in needs:
+                raise InputError(f"model {_name(model)!r} defines no {fn}(), which {needs[fn]} needs "
+                                 "(see `pfbench.models.base`)")
+            continue
+        if not isinstance(inspect.getattr_static(type(model), fn), staticmethod):
             raise InputError(f"model {_name(model)!r}: {fn} must be a @staticmethod (it takes no self; "
                              "put @staticmethod above its def)")
+    return have
 
 
 def _probe_args(model, y, u) -> dict:
@@ -73,19 +88,33 @@ def _shape(model, fn: str, value, want: tuple) -> np.ndarray:
     return arr.astype(np.float64)
 
 
-def check_model(model, y, u) -> None:
+def check_model(model, y, u, needs: dict | None = None) -> None:
     """Check the model's contract on a probe block (module docstring); an InputError naming the
     model, the function and the problem otherwise. ``y``, ``u``: the run's checked inputs
-    (:func:`pfbench.filters.inputs.check_inputs`)."""
-    _check_static(model)
+    (:func:`pfbench.filters.inputs.check_inputs`). ``needs``: function -> what needs it (e.g.
+    ``{"log_likelihood": "method 'bootstrap'"}``): those must be defined; the others are checked
+    where the model defines them (a model for the marginalized PF may have no log_likelihood)."""
+    have = _check_static(model, needs or {})
     a = _probe_args(model, y, u)
     n, n_x, n_y = a["n"], int(model.n_x), int(model.n_y)
+    if "initial" not in have:
+        return
     x = _shape(model, "initial", _call(model, "initial", np.random.default_rng(0), n, a["p"]), (n, n_x))
-    x = _shape(model, "transition", _call(model, "transition", x, a["u0"], 0, a["noise"], a["p"]), (n, n_x))
-    _shape(model, "log_likelihood", _call(model, "log_likelihood", a["y0"], x, a["u0"], 0, a["p"]), (n,))
-    _shape(model, "observe", _call(model, "observe", x, a["u0"], 0, a["obs_noise"], a["p"]), (n, n_y))
+    if "transition" in have:
+        x = _shape(model, "transition", _call(model, "transition", x, a["u0"], 0, a["noise"], a["p"]), (n, n_x))
+    if "log_likelihood" in have:
+        _shape(model, "log_likelihood", _call(model, "log_likelihood", a["y0"], x, a["u0"], 0, a["p"]), (n,))
+    if "observe" in have:
+        _shape(model, "observe", _call(model, "observe", x, a["u0"], 0, a["obs_noise"], a["p"]), (n, n_y))
 
 
+def needs_of(family: str, label: str) -> dict:
+    """The contract functions a method family calls: the particle and guided families propagate
+    and weigh with the model's own functions; the marginalized PF and the Kalman family use the
+    declared linear-Gaussian structure instead."""
+    if family in ("particle", "guided"):
+        return {fn: f"method {label!r}" for fn in ("initial", "transition", "log_likelihood")}
+    return {}
 def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
     """After numba failed to compile a kernel for ``model`` (``exc``): compile each model function
     alone on the probe's arguments and return an InputError naming the first that numba cannot

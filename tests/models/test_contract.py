@@ -132,3 +132,17 @@ def test_run_warns_of_a_non_finite_log_likelihood_with_its_first_step(tmp_path):
     assert r.exit_code == 0, r.output
     [warn] = [ln for ln in r.stderr.splitlines() if ln.startswith("warning:")]
     assert "from step 3 on" in warn
+
+
+class NoLoglik(Good):
+    name = "nologlik"
+    log_likelihood = StateSpaceModel.log_likelihood     # as a marginalized-PF-only model has it
+
+
+def test_a_function_the_method_needs_must_be_defined_the_others_only_if_present():
+    """An MPF-only model (no log_likelihood) still simulates; a bootstrap run of it names what is
+    missing. Catches every function demanded of every model, and a missing one found only as a
+    NotImplementedError deep in a kernel."""
+    traj = NoLoglik().simulate(4)
+    with pytest.raises(InputError, match="defines no log_likelihood\\(\\), which method 'bootstrap' needs"):
+        pfbench.run_filter(NoLoglik(), traj.y, n_particles=10, backend="numpy")
