@@ -26,7 +26,7 @@ import inspect
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, PfbenchError
 
 FUNCTIONS = ("initial", "transition", "log_likelihood", "observe")
 PROBE = 3   # particles in the probe block
@@ -69,9 +69,15 @@ def _probe_args(model, y, u) -> dict:
             "noise": np.zeros((n, int(model.n_noise))), "obs_noise": np.zeros((n, int(model.obs_noise_dim)))}
 
 
-def _call(model, fn: str, *args):
+def _call(model, fn: str, needs: dict, *args):
+    """``model.fn(*args)``; None when the model refuses on purpose (a PfbenchError, e.g. "use
+    method='guided'") and the run does not need ``fn``; that refusal as it is when it does."""
     try:
         return getattr(model, fn)(*args)
+    except PfbenchError:
+        if fn in needs:
+            raise
+        return None
     except Exception as exc:   # the user's code: report it as theirs, not as a pfbench bug
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         raise InputError(f"model {_name(model)!r}: {fn}() raised {type(exc).__name__}"
@@ -94,26 +100,36 @@ def check_model(model, y, u, needs: dict | None = None) -> None:
     (:func:`pfbench.filters.inputs.check_inputs`). ``needs``: function -> what needs it (e.g.
     ``{"log_likelihood": "method 'bootstrap'"}``): those must be defined; the others are checked
     where the model defines them (a model for the marginalized PF may have no log_likelihood)."""
-    have = _check_static(model, needs or {})
+    needs = needs or {}
+    have = _check_static(model, needs)
     a = _probe_args(model, y, u)
     n, n_x, n_y = a["n"], int(model.n_x), int(model.n_y)
     if "initial" not in have:
         return
-    x = _shape(model, "initial", _call(model, "initial", np.random.default_rng(0), n, a["p"]), (n, n_x))
-    if "transition" in have:
-        x = _shape(model, "transition", _call(model, "transition", x, a["u0"], 0, a["noise"], a["p"]), (n, n_x))
-    if "log_likelihood" in have:
-        _shape(model, "log_likelihood", _call(model, "log_likelihood", a["y0"], x, a["u0"], 0, a["p"]), (n,))
-    if "observe" in have:
-        _shape(model, "observe", _call(model, "observe", x, a["u0"], 0, a["obs_noise"], a["p"]), (n, n_y))
+    x = _call(model, "initial", needs, np.random.default_rng(0), n, a["p"])
+    if x is None:
+        return
+    x = _shape(model, "initial", x, (n, n_x))
+    calls = (("transition", (n, n_x), lambda: (x, a["u0"], 0, a["noise"], a["p"])),
+             ("log_likelihood", (n,), lambda: (a["y0"], x, a["u0"], 0, a["p"])),
+             ("observe", (n, n_y), lambda: (x, a["u0"], 0, a["obs_noise"], a["p"])))
+    for fn, want, args in calls:
+        if fn in have:
+            out = _call(model, fn, needs, *args())
+            if out is not None and fn == "transition":
+                x = _shape(model, fn, out, want)
+            elif out is not None:
+                _shape(model, fn, out, want)
 
 
 def needs_of(family: str, label: str) -> dict:
     """The contract functions a method family calls: the particle and guided families propagate
     and weigh with the model's own functions; the marginalized PF and the Kalman family use the
     declared linear-Gaussian structure instead."""
-    if family in ("particle", "guided"):
+    if family == "particle":
         return {fn: f"method {label!r}" for fn in ("initial", "transition", "log_likelihood")}
+    if family == "guided":   # the proposal and its weight may stand in for transition and log_likelihood
+        return {"initial": f"method {label!r}"}
     return {}
 def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
     """After numba failed to compile a kernel for ``model`` (``exc``): compile each model function

@@ -168,8 +168,8 @@ class _MeasurementOutlier:
     def transition(x, u, t, noise, p):
         return p[0] * x + p[1] * noise
 
-    @classmethod
-    def _observe_with_outlier(cls, h, x, t, noise, p):
+    @staticmethod
+    def _observe_with_outlier(h, t, noise, p):
         return h + (p[5] if t == p[4] - 1 else p[2] * noise)
 
 
@@ -179,8 +179,9 @@ class ThesisExampleMeasurement(_MeasurementOutlier, ThesisExample):
     def without_outlier(self):
         return ThesisExample(self.growth, self.sigma_w, self.sigma_v, self.sigma_0, -1)
 
-    def observe(self, x, u, t, noise, p):
-        return self._observe_with_outlier(x, x, t, noise, p)
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        return _MeasurementOutlier._observe_with_outlier(x, t, noise, p)
 
 
 class ThesisExampleQuadraticMeasurement(_MeasurementOutlier, ThesisExampleQuadratic):
@@ -189,8 +190,9 @@ class ThesisExampleQuadraticMeasurement(_MeasurementOutlier, ThesisExampleQuadra
     def without_outlier(self):
         return ThesisExampleQuadratic(self.growth, self.sigma_w, self.sigma_v, self.sigma_0, -1)
 
-    def observe(self, x, u, t, noise, p):
-        return self._observe_with_outlier(x * x / 20.0, x, t, noise, p)
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        return _MeasurementOutlier._observe_with_outlier(x * x / 20.0, t, noise, p)
 
 
 #: readings of the lost observation equation of eq. 2.25

@@ -70,4 +70,4 @@ def test_results_files_are_strict_json(tmp_path, monkeypatch):
     assert data == {"loglik": None, "loglik_nonfinite": "nan", "x": [1.0, None],
                     "x_nonfinite": "inf at [1]"}
     assert _invoke("report", "--out", str(tmp_path)).exit_code == 0
-    assert "| loglik | -inf | -10 |" in (tmp_path / "REPORT.md").read_text()
+    assert "| loglik | -inf | -10 |" in (tmp_path / "thesis" / "REPORT.md").read_text()
