@@ -47,6 +47,10 @@ Rules (all at a 95 % level; each takes its tolerance band from the recipe, with 
 * :func:`proportion` - a rate (e.g. "fails in 8 % of runs"): the 95 % Wilson (or exact
   Clopper-Pearson) interval of k/n from :func:`scipy.stats.binomtest` against paper ± tol, with the
   same three outcomes.
+* :func:`all_cases` - one sentence about many cases, decided by the share of cases whose own
+  rule agrees (every case by default: an intersection-union test).
+* :func:`same_for_every` - a verdict reached at values the paper lost or never stated counts only
+  when a computed sweep over the plausible values gives the same verdict; else not reproducible.
 * :func:`holds` - a qualitative claim decided by a computed, deterministic test the recipe
   describes (agree / disagree).
 * :func:`not_reproducible` - with the reason.
@@ -240,6 +244,51 @@ def proportion(k: int, n: int, paper: float, tol: float, method: str = "wilson")
     rule = (f"95 % {method} interval of {k}/{n} inside the paper's {paper:.1%} ± {tol:.1%}: agree if "
             "wholly inside, disagree if wholly outside, undecided otherwise")
     return Outcome(band_verdict(lo, hi, *band), rule, k / n if n else None, (lo, hi), int(n), band)
+
+
+def all_cases(cases, share: float = 1.0, what: str = "the sentence",
+              why: str = "the sentence says it holds in every case") -> Outcome:
+    """One sentence about many cases (objects, versions, comparisons), decided by the cases' own
+    outcomes. ``cases``: Outcomes, or (label, Outcome) pairs whose labels the rule lists.
+
+    With a of n cases agreeing and x disagreeing, the share of cases where the statement holds is at
+    least a/n and at most (n - x)/n; the sentence agrees when that whole range lies in [``share``, 1],
+    disagrees when it lies wholly below ``share``, undecided otherwise (:func:`band_verdict`).
+    ``share`` = 1 ("in every case", "both A and B") is an intersection-union test: agree only when
+    every case agrees (valid at 95 % without correction), disagree when one case disagrees; a
+    smaller share reads "almost always" (``why``: the reason for it). A case that is not
+    reproducible makes the sentence not reproducible.
+    """
+    pairs = [c if isinstance(c, tuple) else (None, c) for c in cases]
+    n = len(pairs)
+    if n == 0:
+        raise ValueError("all_cases needs at least one case")
+    nr = [o for _, o in pairs if o.verdict == NOT_REPRODUCIBLE]
+    if nr:
+        return Outcome(NOT_REPRODUCIBLE, f"{len(nr)} of {n} cases not reproducible: {nr[0].rule}")
+    a = sum(o.verdict == AGREE for _, o in pairs)
+    x = sum(o.verdict == DISAGREE for _, o in pairs)
+    lo, hi = a / n, (n - x) / n
+    rule = (f"{what}: {a} of {n} cases agree and {x} disagree by their own rule, so the share of cases "
+            f"where it holds is in [{lo:.3g}, {hi:.3g}]; the sentence needs >= {share:.3g} ({why}): "
+            "agree if that whole range does, disagree if none of it does, undecided otherwise")
+    if any(label is not None for label, _ in pairs):
+        rule += " (" + "; ".join(f"{label}: {o.verdict}" for label, o in pairs) + ")"
+    # n stays None: it counts cases, not runs (the scorecard reads n as runs)
+    return Outcome(band_verdict(lo, hi, share, 1.0), rule, a / n, (lo, hi), None, (share, 1.0))
+
+
+def same_for_every(primary: Outcome, sweep, guessed: str) -> Outcome:
+    """A verdict reached at values the paper lost or never stated (a noise level, an equation, a
+    particle count): ``primary`` (at our values) when every point of the computed ``sweep``
+    (:class:`Reading` rows, other plausible values) gives the same verdict, else not reproducible,
+    with every point's verdict in the reason (``guessed``: what the values are)."""
+    sweep = list(sweep)
+    if all(r.outcome.verdict == primary.verdict for r in sweep):
+        return primary
+    pts = "; ".join(f"{r.reading}: {r.outcome.verdict}" for r in sweep)
+    return not_reproducible(f"decided by the {guessed}, which the paper does not give: at our values "
+                            f"{primary.verdict}; {pts}")
 
 
 def holds(value: bool, test: str) -> Outcome:

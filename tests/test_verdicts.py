@@ -94,3 +94,35 @@ def test_statistical_decisions_and_the_expected_number_wrong():
 
 def test_every_word_and_kind_is_defined():
     assert set(v.DEFINITIONS) == set(v.VERDICTS) | set(v.KINDS)
+
+
+def _o(verdict):
+    return v.Outcome(verdict, "test", 0.0, (0.0, 0.0))
+
+
+def test_all_cases():
+    """One sentence about many cases: agree only when enough cases agree, disagree when too many
+    disagree. Catches a rule that agrees on a majority where the sentence says 'each', and one that
+    ignores a disagreeing case."""
+    A, D, U = v.AGREE, v.DISAGREE, v.UNDECIDED
+    each = lambda vs: v.all_cases([_o(x) for x in vs], 1.0, "w", "why").verdict
+    assert each([A, A, A]) == A
+    assert each([A, A, U]) == U
+    assert each([A, A, D]) == D
+    most = lambda vs: v.all_cases([_o(x) for x in vs], 0.9, "w", "why").verdict
+    assert most([A] * 9 + [D]) == A                 # 90 % agree: 'almost every'
+    assert most([A] * 8 + [U, D]) == U              # 80-90 %: cannot tell
+    assert most([A] * 8 + [D, D]) == D              # at most 80 %
+    o = v.all_cases([_o(A), v.not_reproducible("lost")], 1.0, "w", "why")
+    assert o.verdict == v.NOT_REPRODUCIBLE and "lost" in o.rule
+    labelled = v.all_cases([("loss", _o(A)), ("identification", _o(U))])
+    assert labelled.verdict == U and "loss: agree; identification: undecided" in labelled.rule
+
+
+def test_same_for_every():
+    """A verdict reached at guessed values counts only when every swept value gives it. Catches the
+    primary's verdict kept when one sweep point says otherwise."""
+    agree, against = _o(v.AGREE), _o(v.DISAGREE)
+    assert v.same_for_every(agree, [v.Reading("Q x 10", "q", agree)], "Q") is agree
+    o = v.same_for_every(agree, [v.Reading("Q x 10", "q", agree), v.Reading("Q / 10", "q", against)], "Q")
+    assert o.verdict == v.NOT_REPRODUCIBLE and "Q / 10: disagree" in o.rule

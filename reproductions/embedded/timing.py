@@ -225,10 +225,6 @@ def table2(ctx):
     ctx.write_json("table2_calibration", cal)
     ctx.note(f"Fit: {cal['method']}; 2 parameters (float {cal['efficiency']['float']:.3f}, double "
              f"{cal['efficiency']['double']:.3f}); max |leave-one-out error| {cal['max_abs_loo_error']:.1%}.")
-    per_ps = {b: [c["published_ms"] * 168e3 / (c["M"] * c["N_p"]) for c in cal["cells"] if c["build"] == b]
-              for b in ("D(S)", "D(O)")}
-    loo = {b: [c["loo_error"] for c in cal["cells"] if c["build"] == b] for b in ("D(S)", "D(O)")}
-    fitted_ratio = cal["ratios"][0]["fitted_ratio"]
     cpps = {b: [c["published_ms"] * 168e3 / (c["M"] * c["N_p"]) for c in cal["cells"] if c["build"] == b]
             for b in ("D(S)", "D(O)")}
     loo_f = [c["loo_error"] for c in cal["cells"] if c["build"] == "D(O)"]

@@ -10,7 +10,7 @@ from pfbench.sweep import make_spec, run_sweep, summarize_frame
 from pfbench.procs import usable_cores
 from pfbench.errors import PfbenchError
 from pfbench.sweep.store import Store, journal_path, spec_hash
-from pfbench.verdicts import AGREE, DISAGREE, NOT_REPRODUCIBLE, Outcome, Reading, band_verdict
+from pfbench.verdicts import NOT_REPRODUCIBLE, Outcome, Reading, same_for_every
 
 #: Where each (sub-)filter takes its point estimate. [MultiPDF] Alg. 1 step 6 and Alg. 2 step 2e
 #: compute it AFTER the resampling step ("post": the plain mean of the resampled particles);
@@ -251,35 +251,6 @@ def interval_text(o) -> str:
     return f"{o.verdict}, {iv}"
 
 
-def cases_rule(outcomes, share: float, what: str, why: str) -> Outcome:
-    """One sentence about many cases (objects, versions, N_f values): the cases' own outcomes
-    (95 % interval rules of :mod:`pfbench.verdicts`) decide it.
-
-    With a of n cases agreeing and x disagreeing, the share of cases in which the statement holds is
-    at least a/n and at most (n - x)/n; the sentence agrees when that whole range lies in
-    [``share``, 1], disagrees when it lies wholly below ``share``, and is undecided otherwise
-    (:func:`pfbench.verdicts.band_verdict`). ``share`` = 1 ("for each"): agree only when every case
-    agrees (an intersection-union test, valid at 95 % without correction), disagree when one case
-    disagrees. ``why``: the reason for ``share``. A case that is not reproducible makes the
-    sentence not reproducible.
-    """
-    outcomes = list(outcomes)
-    n = len(outcomes)
-    if n == 0:
-        raise ValueError("cases_rule needs at least one case")
-    nr = [o for o in outcomes if o.verdict == NOT_REPRODUCIBLE]
-    if nr:
-        return Outcome(NOT_REPRODUCIBLE, f"{len(nr)} of {n} cases not reproducible: {nr[0].rule}")
-    a = sum(o.verdict == AGREE for o in outcomes)
-    x = sum(o.verdict == DISAGREE for o in outcomes)
-    lo, hi = a / n, (n - x) / n
-    rule = (f"{what}: {a} of {n} cases agree and {x} disagree by their own 95 % interval, so the share "
-            f"of cases where it holds is in [{lo:.3g}, {hi:.3g}]; the sentence needs >= {share:.3g} "
-            f"({why}): agree if that whole range does, disagree if none of it does, undecided otherwise")
-    # n stays None: it counts cases, not runs (the scorecard reads n as runs)
-    return Outcome(band_verdict(lo, hi, share, 1.0), rule, a / n, (lo, hi), None, (share, 1.0))
-
-
 def over_noise_levels(by_level):
     """Ob5's noise levels were lost ([MultiPDF] Table 3): ``by_level`` is [(factor, Outcome)] for
     the swept measurement-noise factors, the first one our primary reading. Returns (outcome,
@@ -289,7 +260,7 @@ def over_noise_levels(by_level):
     (s0, o0), rest = by_level[0], by_level[1:]
     others = [Reading(f"measurement noise std x {s:g}", f"noise x {s:g}", o) for s, o in rest]
     levels = ", ".join(f"x {s:g}" for s, _ in by_level)
-    if all(o.verdict == o0.verdict for _, o in rest):
+    if same_for_every(o0, others, "Ob5 noise level") is o0:
         reading = (f"measurement noise std x {s0:g} (our value; [MultiPDF] Table 3 lost) - primary "
                    f"because every swept level ({levels}) gives the same verdict, so the guessed "
                    "noise level does not decide it")

@@ -4,9 +4,9 @@ from __future__ import annotations
 import pandas as pd
 
 from pfbench.recipes import recipe
-from pfbench.verdicts import Reading, direction, not_reproducible
+from pfbench.verdicts import Reading, all_cases, direction, not_reproducible
 
-from ._common import (ESTIMATE, OPTIONS, best_set_rule, cases_rule, claims, full_time_estimate, mpdf_cols,
+from ._common import (ESTIMATE, OPTIONS, best_set_rule, claims, full_time_estimate, mpdf_cols,
                       nf_vs_bf, over_noise_levels, per_run, plot, reuse_or_sweep, significance, sweep)
 
 NP = (100, 200, 500, 1000)
@@ -159,14 +159,14 @@ def _claims(ctx, name, wide, particles, filters):
         for v, (o, q) in cases.items():
             ctx.compare(f"fig7 sentence, Ob3 {q}", ours=o.ours, note=f"{o.verdict}, 95 % interval {_iv(o)}")
         ctx.claim(S_V13, "[MultiPDF] §7, Figs. 5-7", "per version: " + "; ".join(q for _, q in cases.values()),
-                  cases_rule([o for o, _ in cases.values()], 1.0, "best N_f in 2-5, for v1, v2 and v3",
+                  all_cases([o for o, _ in cases.values()], 1.0, "best N_f in 2-5, for v1, v2 and v3",
                              FEW_WHY), paper="optimum N_f in 2-5 for each of v1-v3",
                   reading="for each version the best N_f lies in 2-5 (the best N_f there beats the best "
                           "outside, N_f = 1 or 10) - primary because the sentence says 'the best "
                           "estimation quality was provided by' a few sub-filters",
                   others=[Reading("a few sub-filters (mean over N_f = 2-5) beat N_f = 1, for each version",
                                   "; ".join(q for _, q in alt.values()),
-                                  cases_rule([o for o, _ in alt.values()], 1.0, "N_f 2-5 better than 1, "
+                                  all_cases([o for o, _ in alt.values()], 1.0, "N_f 2-5 better than 1, "
                                              "for v1, v2 and v3", FEW_WHY))])
     elif name == "fig8":
         top = sorted(particles)[-2:]
@@ -192,12 +192,12 @@ def _claims(ctx, name, wide, particles, filters):
         cases = [_vs_bf(w8, (10, 20), -1, "v4: "), _vs_bf(wide, (10, 20), -1, "v5: ")]
         alt = [_vs_bf(w8, (10,), -1, "v4: "), _vs_bf(wide, (10,), -1, "v5: ")]
         ctx.claim(S_V45, "[MultiPDF] §7, Figs. 8-9", "; ".join(q for _, q in cases),
-                  cases_rule([o for o, _ in cases], 1.0, "N_f >= 10 better than N_f = 1, for v4 and v5",
+                  all_cases([o for o, _ in cases], 1.0, "N_f >= 10 better than N_f = 1, for v4 and v5",
                              FEW_WHY), paper="< 0 for v4 and v5",
                   reading="many sub-filters (N_f = 10 and 20, the largest of our grid) beat N_f = 1 for "
                           "each version - primary because 'a lot of parallel filters still improve'",
                   others=[Reading("N_f = 10 alone beats N_f = 1 for each version", "; ".join(q for _, q in alt),
-                                  cases_rule([o for o, _ in alt], 1.0, "N_f = 10 better than N_f = 1",
+                                  all_cases([o for o, _ in alt], 1.0, "N_f = 10 better than N_f = 1",
                                              FEW_WHY))])
         _trend(ctx, wide)
 
@@ -215,16 +215,16 @@ def _trend(ctx, wide9):
     bf = [c[-1] for c in cases if c[1] == 1]
     ctx.claim(S_TREND, "[MultiPDF] §7, Figs. 3-9",
               f"per (figure, N_f) case, {len(cases)} cases: aRMSE(largest N_p) - aRMSE(smallest N_p), "
-              "paired per run", cases_rule(outs, ALMOST, "more particles improve", ALMOST_WHY),
+              "paired per run", all_cases(outs, ALMOST, "more particles improve", ALMOST_WHY),
               paper="< 0 in (almost) every case",
               reading="each case is one (figure, N_f) curve of Figs. 3-9, compared between its smallest and "
                       "largest N_p - primary because the sentence fixes N_f and speaks of every case; the "
                       "end points measure the curve's overall trend",
               others=[Reading("every case without exception", "the same cases",
-                              cases_rule(outs, 1.0, "more particles improve", "'every case', the '(almost)' "
+                              all_cases(outs, 1.0, "more particles improve", "'every case', the '(almost)' "
                                          "dropped")),
                       Reading("the bootstrap curves only (N_f = 1), one case per figure",
-                              f"{len(bf)} cases at N_f = 1", cases_rule(bf, ALMOST, "more particles improve",
+                              f"{len(bf)} cases at N_f = 1", all_cases(bf, ALMOST, "more particles improve",
                                                                         ALMOST_WHY))])
 
 
@@ -237,10 +237,10 @@ def _ob5_claims(ctx, by_level, particles):
     for scale, wide, st in by_level:
         tag = f"noise x {scale:g}: "
         o5, q5 = _vs_bf(wide, (2, 3, 5, 10), -1, "Ob5: ")
-        ben.append((scale, cases_rule([o4, o5], 1.0, "N_f > 1 better than N_f = 1 for Ob4 and Ob5",
+        ben.append((scale, all_cases([o4, o5], 1.0, "N_f > 1 better than N_f = 1 for Ob4 and Ob5",
                                       "both objects the sentence names")))
         np5 = _np_cases(wide, NF)
-        npc.append((scale, cases_rule([c[-1] for c in np4 + np5], 1.0,
+        npc.append((scale, all_cases([c[-1] for c in np4 + np5], 1.0,
                                       "more particles improve, every N_f of Figs. 10 and 11",
                                       "the sentence has no 'almost'")))
         mpf = wide[[("mpf", p, 1) for p in particles]].mean(axis=1)
@@ -250,7 +250,7 @@ def _ob5_claims(ctx, by_level, particles):
         mp = wide[mpdf_cols(wide, nf=best)].mean(axis=1)
         a = direction((mpf - bf).to_numpy(), -1, "aRMSE difference")
         b = direction((mp - mpf).to_numpy(), -1, "aRMSE difference")
-        mpf_s.append((scale, cases_rule([a, b], 1.0, "MPF better than BF and MultiPDF better than MPF",
+        mpf_s.append((scale, all_cases([a, b], 1.0, "MPF better than BF and MultiPDF better than MPF",
                                         "both clauses of the sentence")))
         ctx.compare(f"fig11: {tag}{q5}", ours=o5.ours, note=f"{o5.verdict}, 95 % interval {_iv(o5)}")
         ctx.compare(f"fig11: {tag}aRMSE(MPF) - aRMSE(BF, N_f = 1), mean over N_p", ours=a.ours,

@@ -8,9 +8,9 @@ import pfbench
 from pfbench.metrics import distance
 from pfbench.models import get
 from pfbench.recipes import recipe
-from pfbench.verdicts import CONSTRUCTION, Reading, close_to, direction, holds
+from pfbench.verdicts import CONSTRUCTION, Reading, all_cases, close_to, direction, holds
 
-from ._common import ESTIMATE, cases_rule, filter_kw, interval_text
+from ._common import ESTIMATE, filter_kw, interval_text
 
 #: the band of the 85.46 % claim: the paper prints one run of M = 100000 steps, whose own sampling
 #: error is 0.1-0.2 point (our batch-means standard errors at M = 20000, 0.13-0.35 point for
@@ -89,13 +89,13 @@ def table6(ctx):
               "standard deviations than from single ones, but statistics for estimate from MultiPDF PF are "
               "noticeably smaller", where,
               f"per sub-filter PF[1..3]: mean and std of d_k minus those of d_MultiPDF, over batches of {BATCH} steps",
-              cases_rule([o for o, _ in means + stds], 1.0, "sub-filter statistic larger than MultiPDF's",
+              all_cases([o for o, _ in means + stds], 1.0, "sub-filter statistic larger than MultiPDF's",
                          "each of the three sub-filters, mean and standard deviation as the sentence says"),
               paper="> 0 for each",
               reading="both statistics the sentence names (mean and standard deviation), for each sub-filter "
                       "- primary because the sentence says 'higher mean values and standard deviations'",
               others=[Reading("the means only", "mean d_PF[k] - mean d_MultiPDF, k = 1..3",
-                              cases_rule([o for o, _ in means], 1.0, "sub-filter mean larger",
+                              all_cases([o for o, _ in means], 1.0, "sub-filter mean larger",
                                          "each of the three sub-filters"))])
     ctx.claim("The bootstrap filter provided somewhat worse results", where,
               f"mean d_BF - d_MultiPDF (batch means of {BATCH} steps)",
@@ -163,7 +163,7 @@ def table7(ctx):
     ctx.claim("A comparison of distances for MultiPDF and BF slightly favors BF, but as one can see in "
               "Table 6, the mean distance for MultiPDF PF is generally smaller than for BF", where,
               f"(1) % steps d_MultiPDF < d_BF minus 50, (2) mean d_BF - d_MultiPDF (batch means of {BATCH} steps)",
-              cases_rule([a, b], 1.0, "(1) < 0 and (2) > 0", "both clauses of the sentence"),
+              all_cases([a, b], 1.0, "(1) < 0 and (2) > 0", "both clauses of the sentence"),
               paper="(1) < 0, (2) > 0",
               reading="both clauses: BF closer in more than half of the steps, yet MultiPDF's mean distance "
                       "smaller - primary because the sentence states both",

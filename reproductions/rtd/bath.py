@@ -321,7 +321,7 @@ def fig7(ctx):
 
     r = run_bath(ctx)
     s = r["shown"]
-    t, ref = s["t"], s["ref"]
+    t = s["t"]
     unit = "temperature [degC]" if s["y_true"] is not None else "reading [log units]"
     fig, axes = plotting.subplots(1, 3, figsize=(14, 4.5))
     for ax, i0, title in ((axes[0], s["i_up"], "ascending"), (axes[1], s["i_dn"], "descending")):

@@ -15,13 +15,12 @@ import numpy as np
 import pandas as pd
 
 import pfbench
-from pfbench import resampling
 from pfbench.models import get
 from pfbench.models.base import LOG_2PI
 from pfbench.models.thesis_example import ThesisExample
 from pfbench.recipes import recipe
 from pfbench.plotting import OTHER, OURS, PAPER, label, paper_value, subplots
-from pfbench.verdicts import Z95, CONSTRUCTION, Reading, close_to, direction, holds, in_band, not_reproducible
+from pfbench.verdicts import Z95, CONSTRUCTION, Reading, close_to, direction, holds, in_band, same_for_every
 
 
 def _history(res):
@@ -249,17 +248,17 @@ def sweep_claim(ctx, claim, where, rows, primary, lost, paper, why="the recipe's
     ``primary`` is the primary reading. When they do,
     the primary reading's outcome is scored and the sweep is said to show it; otherwise the claim
     is not reproducible. Every other row is a sensitivity row."""
-    swept = {r[2].verdict for r in rows if r[3]}
     prim = next(r for r in rows if r[0] == primary)
-    if len(swept) == 1:
+    decided = same_for_every(prim[2], [Reading(r[0], r[1], r[2]) for r in rows if r[3] and r is not prim],
+                             f"lost {lost}")
+    if decided is prim[2]:
         outcome = prim[2]
         reading = (f"{primary} ({why}); the verdict is {prim[2].verdict} for every reading "
                    f"of the lost {lost} (sensitivity rows), so it is scored")
         others = [Reading(r[0], r[1], r[2]) for r in rows if r[0] != primary]
         quantity = prim[1]
     else:
-        outcome = not_reproducible(f"rests on the lost {lost}: its readings give different verdicts "
-                                   f"({', '.join(sorted(swept))})")
+        outcome = decided
         reading = f"{primary} ({why}), but the verdict changes with the lost {lost}"
         others = [Reading(r[0], r[1], r[2]) for r in rows]
         quantity = prim[1]

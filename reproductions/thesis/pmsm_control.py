@@ -29,9 +29,9 @@ from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
 
 from reproductions.thesis.ch2 import mse_reduction
-from pfbench.plotting import OURS, PAPER, label, subplots
-from pfbench.verdicts import (Z95, AGREE, DISAGREE, UNDECIDED, Outcome, Reading, close_to, direction,
-                              not_reproducible, proportion)
+from pfbench.plotting import OURS, label, subplots
+from pfbench.verdicts import (Z95, Outcome, Reading, all_cases, close_to, direction, not_reproducible,
+                              proportion)
 
 
 def _warm(cfg):
@@ -63,20 +63,6 @@ def rate_band(paper: float, paper_runs: int = 1000) -> float:
     """Half-width of the band around a failure rate the thesis prints to whole percent ("about"):
     the rounding (0.5 points) plus the paper's own 95 % binomial error at its ``paper_runs`` runs."""
     return 0.005 + Z95 * math.sqrt(paper * (1.0 - paper) / paper_runs)
-
-
-def all_of(parts: list, what: str) -> Outcome:
-    """One sentence that asserts several paired comparisons at once ("outperforms ... both in A and
-    in B"): an intersection-union test over their outcomes. Agree when every part agrees (each at
-    95 %, so the conjunction is at 95 %), disagree when any part disagrees, undecided otherwise."""
-    verdicts = [o.verdict for _, o in parts]
-    verdict = AGREE if all(v == AGREE for v in verdicts) else (
-        DISAGREE if DISAGREE in verdicts else UNDECIDED)
-    rule = (f"all of {len(parts)} paired 95 % t-interval tests of {what} (agree if every one agrees, "
-            "disagree if any disagrees, undecided otherwise): "
-            + "; ".join(f"{name}: {o.verdict}" for name, o in parts))
-    return Outcome(verdict, rule, f"{sum(v == AGREE for v in verdicts)} of {len(parts)} agree",
-                   n=min((o.n or 0) for _, o in parts))
 
 
 def _table(results, labels, key):
@@ -230,7 +216,8 @@ def fig4_9(ctx):
             for name_, o in parts:
                 ctx.compare(f"{name_}, {prior} initial particles (paired, {o.n} runs)", ours=o.ours,
                             paper="> 0", note=f"95 % interval {_interval(o)}: {o.verdict}")
-            outperform[(prior, mx)] = all_of(parts, "PI on the others minus PI on the maximum")
+            outperform[(prior, mx)] = all_cases(parts, 1.0, "PI on the others minus PI on the maximum (paired 95 % t-intervals)",
+                                                         "the maximum outperforms in every comparison")
             fails[(prior, mx)] = direction(by["mean"]["failed"].astype(float) - by[mx]["failed"].astype(float),
                                            +1, "paired failure difference, PI on the mean minus on the maximum")
         if prior == priors[0]:

@@ -160,25 +160,6 @@ def _o(verdict):
     return verdicts.Outcome(verdict, "test", 0.0, (0.0, 0.0))
 
 
-def test_cases_rule():
-    """One sentence about many cases: agree only when enough cases agree, disagree when too many
-    disagree. Catches a rule that agrees on a majority where the sentence says 'each', and one that
-    ignores a disagreeing case."""
-    from reproductions.multipdf._common import cases_rule
-
-    A, D, U = verdicts.AGREE, verdicts.DISAGREE, verdicts.UNDECIDED
-    each = lambda vs: cases_rule([_o(v) for v in vs], 1.0, "w", "why").verdict
-    assert each([A, A, A]) == A
-    assert each([A, A, U]) == U
-    assert each([A, A, D]) == D
-    most = lambda vs: cases_rule([_o(v) for v in vs], 0.9, "w", "why").verdict
-    assert most([A] * 9 + [D]) == A                 # 90 % agree: 'almost every'
-    assert most([A] * 8 + [U, D]) == U              # 80-90 %: cannot tell
-    assert most([A] * 8 + [D, D]) == D              # at most 80 %
-    o = cases_rule([_o(A), verdicts.not_reproducible("lost")], 1.0, "w", "why")
-    assert o.verdict == verdicts.NOT_REPRODUCIBLE and "lost" in o.rule
-
-
 def test_over_noise_levels():
     """Ob5's lost noise level: scored only when every swept level gives the same verdict. Catches a
     verdict taken from our guessed level when another level says otherwise."""

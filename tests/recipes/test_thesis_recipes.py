@@ -108,18 +108,6 @@ def test_outlier_readings_put_0_5_in_the_process_or_the_measurement(obs):
         assert f.outlier_step == -1 and type(f) is OUTLIERS["process"][obs]
 
 
-def test_all_of_is_an_intersection_union_test():
-    """Catches 'outperforms both in A and in B' agreeing when only some comparisons agree."""
-    from pfbench.verdicts import DISAGREE, UNDECIDED, direction
-    from reproductions.thesis.pmsm_control import all_of
-
-    up, down = direction([1.0, 1.1, 0.9], +1), direction([-1.0, -1.1, -0.9], +1)
-    flat = direction([1.0, -1.0, 0.1], +1)
-    assert all_of([("a", up), ("b", up)], "x").verdict == AGREE
-    assert all_of([("a", up), ("b", flat)], "x").verdict == UNDECIDED
-    assert all_of([("a", up), ("b", flat), ("c", down)], "x").verdict == DISAGREE
-
-
 def test_bands_come_from_the_papers_precision():
     """Whole-percent rounding + the paper's own 95 % error at its 1000 runs; catches a band widened
     (e.g. the old fixed ±3 points) or narrowed to the rounding alone."""
