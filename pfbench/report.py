@@ -174,7 +174,7 @@ def scorecard(records: list[dict]) -> dict:
             counts[c["verdict"]] += 1
         others = [c for r in recs for c in _claims(r) if _kind(c) != FINDING]
         setup = [c for c in others if _kind(c) == SETUP]
-        stat = sum(1 for c in findings[paper] if c.get("interval") is not None
+        stat = sum(1 for c in findings[paper] if c.get("interval") is not None and c.get("random", True)
                    and c["verdict"] in (AGREE, DISAGREE))
         runs = [int(c["n"]) for c in findings[paper] if isinstance(c.get("n"), int)]
         out[paper] = {"claims": sum(counts.values()), **counts,

@@ -103,12 +103,13 @@ class Outcome:
     interval: tuple[float, float] | None = None
     n: int | None = None
     band: tuple[float, float] | None = None
+    random: bool = True   # False: the interval is a deterministic range, not a 95 % interval
 
     @property
     def statistical(self) -> bool:
         """Whether the verdict is a decision from a 95 % interval of random data (it can be wrong
         by chance; :func:`expected_false`)."""
-        return self.interval is not None and self.verdict in (AGREE, DISAGREE)
+        return self.interval is not None and self.random and self.verdict in (AGREE, DISAGREE)
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -200,10 +201,13 @@ def no_dependence(diffs, margin: float, what: str) -> Outcome:
 
 
 def close_to(ours: float, paper: float, tol: float, se: float = 0.0, why: str = "",
-             interval: tuple[float, float] | None = None) -> Outcome:
+             interval: tuple[float, float] | None = None, interval_is: str = "our 95 % interval") -> Outcome:
     """Numeric claim: ours against the band paper ± tol |paper| (``why``: the tolerance's reason).
 
     Our interval is ``interval`` when given, else ours ± 1.96 ``se`` (a point when ``se`` is 0).
+    ``interval_is`` names a given interval that is not a 95 % interval of random runs (e.g. "the
+    best-worst range of the pipeline timing"); such a verdict is not counted among the interval
+    decisions that can be wrong by chance.
     """
     ours, paper = float(ours), float(paper)
     if not (math.isfinite(ours) and math.isfinite(paper)):
@@ -213,11 +217,12 @@ def close_to(ours: float, paper: float, tol: float, se: float = 0.0, why: str = 
         interval = (ours - Z95 * float(se), ours + Z95 * float(se))
     lo, hi = float(interval[0]), float(interval[1])
     point = lo == hi
-    rule = (f"{'ours' if point else 'our 95 % interval'} within {tol * 100:.3g} % of the paper's value "
+    rule = (f"{'ours' if point else interval_is} within {tol * 100:.3g} % of the paper's value "
             f"({'agree if inside, disagree otherwise' if point else 'agree if wholly inside, disagree if wholly outside, undecided otherwise'})")
     if why:
         rule += f" ({why})"
-    return Outcome(band_verdict(lo, hi, *band), rule, ours, None if point else (lo, hi), band=band)
+    return Outcome(band_verdict(lo, hi, *band), rule, ours, None if point else (lo, hi), band=band,
+                   random=interval_is == "our 95 % interval")
 
 
 def proportion_interval(k: int, n: int, method: str = "wilson") -> tuple[float, float]:

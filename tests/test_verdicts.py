@@ -126,3 +126,11 @@ def test_same_for_every():
     assert v.same_for_every(agree, [v.Reading("Q x 10", "q", agree)], "Q") is agree
     o = v.same_for_every(agree, [v.Reading("Q x 10", "q", agree), v.Reading("Q / 10", "q", against)], "Q")
     assert o.verdict == v.NOT_REPRODUCIBLE and "Q / 10: disagree" in o.rule
+
+
+def test_a_deterministic_range_is_not_counted_as_a_chance_decision():
+    """close_to with a best-worst range: decided the same way, named as such, and not among the
+    decisions that can be wrong by chance (catches the range printed as a 95 % interval)."""
+    o = v.close_to(32.0, 33.0, 0.1, interval=(31.0, 34.0), interval_is="the best-worst range")
+    assert o.verdict == v.AGREE and o.rule.startswith("the best-worst range within 10 %")
+    assert not o.statistical and v.close_to(32.0, 33.0, 0.1, interval=(31.0, 34.0)).statistical

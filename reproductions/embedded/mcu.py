@@ -115,6 +115,7 @@ def mcu(ctx):
     ctx.claim("D(S)/D(O) time ratio at M = N_p = 1000", "[Embedded] §5.1, Table 2",
               "emulated D(S) time / emulated D(O) time (interval: best/worst pipeline timing of both builds)",
               close_to(d["emulated_ms"] / f["emulated_ms"], paper_ratio, tol, interval=(lo, hi),
+                       interval_is="the best-worst range of the pipeline timing",
                        why="the paper's own ratio of the same two programs spans "
                            + "-".join(f"{x:.1f}" for x in sorted(ratios)) + " across Table 2's cells"),
               paper=round(paper_ratio, 2),
