@@ -35,10 +35,10 @@ def subplots(nrows: int = 1, ncols: int = 1, **kwargs):
     import matplotlib.pyplot as plt
 
     kwargs.setdefault("layout", "constrained")
-    with matplotlib.rc_context(STYLE):
-        fig, axes = plt.subplots(nrows, ncols, **kwargs)
-    fig.set_dpi(STYLE["figure.dpi"])
-    return fig, axes
+    # for the whole process, not a context: labels, legends and the saved file's dpi are styled
+    # after this call returns (recipe figures are the only ones a pfbench process draws)
+    matplotlib.rcParams.update(STYLE)
+    return plt.subplots(nrows, ncols, **kwargs)
 
 
 def label(ax, xlabel: str, ylabel: str, title: str | None = None) -> None:
