@@ -1,7 +1,6 @@
 """Shared helpers of the multipdf recipes: run a sweep into a resumable store and summarise."""
 from __future__ import annotations
 
-import inspect
 import time
 
 import numpy as np
@@ -14,29 +13,15 @@ from pfbench.verdicts import NOT_REPRODUCIBLE, Outcome, Reading, same_for_every
 
 #: Where each (sub-)filter takes its point estimate. [MultiPDF] Alg. 1 step 6 and Alg. 2 step 2e
 #: compute it AFTER the resampling step ("post": the plain mean of the resampled particles);
-#: pfbench's filters today take the weighted mean before resampling ("pre"). The two differ by the
-#: resampling noise only (same expectation). ``run_filter``'s ``estimate="pre"|"post"`` option is
-#: being added in the framework; until it exists this must stay "pre" (today's behaviour). Once it
-#: exists, switching every multipdf recipe to the paper's algorithm is this one line: "post".
-ESTIMATE = "pre"
+#: pfbench's default is the weighted mean before resampling ("pre"); the two differ by the
+#: resampling noise only (same expectation). The recipes follow the paper ("post", ``run_filter``'s
+#: ``estimate`` option).
+ESTIMATE = "post"
 
 
-def estimate_kw(*funcs) -> tuple:
-    """(func, {"estimate": ESTIMATE}) for the first of ``funcs`` that takes an ``estimate`` keyword,
-    else (None, {}) - allowed only while :data:`ESTIMATE` is "pre", the framework's behaviour
-    without the option (a RuntimeError otherwise, so a switch to "post" cannot pass silently)."""
-    for f in funcs:
-        if "estimate" in inspect.signature(f).parameters:
-            return f, {"estimate": ESTIMATE}
-    if ESTIMATE != "pre":
-        raise RuntimeError(f"ESTIMATE = {ESTIMATE!r} needs pfbench's estimate= option, which "
-                           f"{', '.join(f.__name__ for f in funcs)} do not take yet")
-    return None, {}
-
-
-def filter_kw(run_filter) -> dict:
+def filter_kw(run_filter=None) -> dict:
     """Keyword arguments for ``pfbench.run_filter`` that select :data:`ESTIMATE`."""
-    return estimate_kw(run_filter)[1]
+    return {"estimate": ESTIMATE}
 
 
 #: the --option keys that :func:`sweep` and its helpers read (declare them on every recipe using it)
@@ -50,15 +35,14 @@ def workers(ctx) -> int:
 
 def sweep_spec(ctx, name: str, model: str, *, params=None, particles, filters, runs_quick: int,
                runs_full: int, steps: int = 100, extra_configs=()):
-    """(spec, store path, extra run_sweep keywords) of the sweep :func:`sweep` runs."""
+    """(spec, store path) of the sweep :func:`sweep` runs."""
     runs = ctx.option("runs", runs_full if ctx.full else runs_quick, int)
     configs = [("multipdf", p, f) for p in particles for f in filters if f <= p]
     configs += list(extra_configs)
-    where, est = estimate_kw(make_spec, run_sweep)
     spec = make_spec(model, params=params or {}, configs=configs, runs=runs, steps=steps,
-                     seed=ctx.seed, backend=ctx.backend, **(est if where is make_spec else {}))
+                     seed=ctx.seed, backend=ctx.backend, estimate=ESTIMATE)
     out = ctx.out_dir / "sweeps" / f"{name}-{'full' if ctx.full else 'quick'}.jsonl"
-    return spec, out, (est if where is run_sweep else {})
+    return spec, out
 
 
 def reuse_or_sweep(ctx, name: str, model: str, **kw):
@@ -70,7 +54,7 @@ def reuse_or_sweep(ctx, name: str, model: str, **kw):
     (and not listed as an output of this recipe); otherwise this recipe runs the same spec into its
     own store ``<this recipe>_<name>`` (same numbers, more time).
     """
-    spec, out, _ = sweep_spec(ctx, name, model, **kw)
+    spec, out = sweep_spec(ctx, name, model, **kw)
     try:
         if journal_path(out).exists():
             st = Store.read(out)
@@ -90,9 +74,9 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
     The store is results/multipdf/sweeps/<name>-<quick|full>.jsonl: an interrupted recipe
     resumes; a store written by other code or another grid is replaced.
     """
-    spec, out, kw = sweep_spec(ctx, name, model, params=params, particles=particles, filters=filters,
-                               runs_quick=runs_quick, runs_full=runs_full, steps=steps,
-                               extra_configs=extra_configs)
+    spec, out = sweep_spec(ctx, name, model, params=params, particles=particles, filters=filters,
+                           runs_quick=runs_quick, runs_full=runs_full, steps=steps,
+                           extra_configs=extra_configs)
     runs = spec["runs"]
     overwrite = False
     if journal_path(out).exists():
@@ -102,7 +86,7 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
         except PfbenchError:
             overwrite = True
     t0 = time.perf_counter()
-    rep = run_sweep(spec, out, workers=workers(ctx), progress=not ctx.quiet, overwrite=overwrite, **kw)
+    rep = run_sweep(spec, out, workers=workers(ctx), progress=not ctx.quiet, overwrite=overwrite)
     wall = time.perf_counter() - t0
     st = Store.read(out)
     frame = st.frame()

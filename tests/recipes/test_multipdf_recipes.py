@@ -172,24 +172,16 @@ def test_over_noise_levels():
     assert out.verdict == verdicts.NOT_REPRODUCIBLE and len(others) == 2
 
 
-def test_estimate_choice_is_one_constant(monkeypatch):
-    """[MultiPDF] Algs. 1-2 estimate after resampling: the choice is ESTIMATE in _common. Catches a
-    switch to "post" that would pass silently before run_filter takes estimate=, and the keyword
-    not passed once it does."""
+def test_recipes_estimate_after_resampling_as_the_paper():
+    """[MultiPDF] Algs. 1-2 take the point estimate after resampling: the recipes' sweeps and
+    single runs ask for it (catches the choice dropped from the sweep spec or the filter call)."""
+    import pfbench
     from reproductions.multipdf import _common
 
-    def old(y, *, seed=0):
-        pass
-
-    def new(y, *, seed=0, estimate="pre"):
-        pass
-
-    assert _common.estimate_kw(old) == (None, {})
-    assert _common.estimate_kw(old, new) == (new, {"estimate": _common.ESTIMATE})
-    monkeypatch.setattr(_common, "ESTIMATE", "post")
-    with pytest.raises(RuntimeError, match="estimate"):
-        _common.estimate_kw(old)
-    assert _common.filter_kw(new) == {"estimate": "post"}
+    assert _common.ESTIMATE == "post" and _common.filter_kw(pfbench.run_filter) == {"estimate": "post"}
+    ctx = recipes.RecipeContext(recipe=recipes.resolve("multipdf:fig3"), options={"runs": 2})
+    spec, _ = _common.sweep_spec(ctx, "fig3", "ob1", particles=[100], filters=[1, 2], runs_quick=2, runs_full=2)
+    assert spec["estimate"] == "post"
 
 
 def test_a_sentence_spanning_figures_reads_the_other_recipe_sweep(tmp_path):
