@@ -1,14 +1,8 @@
 """Files that are safe to share: lock files, a report beside a running recipe, a rerun without its
-journal, a disk that fills up during a sweep.
-
-Each test names the mutation it catches. A full disk is simulated by a journal whose writes stop
-after a budget of bytes with ENOSPC (as a full file system does: part of a buffer may land, the rest
-fails, and closing the file fails again), since tests cannot mount a small file system.
-"""
-import builtins
+journal, a full disk when a lock takes its PID (a full disk during a sweep and a lock that is a link,
+on the command line: test_os_errors.py). Each test names the mutation it catches."""
 import errno
 import hashlib
-import io
 import json
 import os
 from pathlib import Path
@@ -21,47 +15,24 @@ from pfbench.errors import DataError, InputError
 from pfbench.procs import exclusive_lock, lock_path
 from pfbench.report import check_results
 from pfbench.sweep import make_spec
-from pfbench.sweep import store as store_mod
 from pfbench.sweep.runner import run_sweep
 from pfbench.sweep.store import journal_path
 
 SPEC_ARGS = dict(particles=(10,), runs=6, steps=3, backend="numpy")
-SWEEP = ["sweep", "--model", "ob1", "--particles", "10", "--runs", "6", "--steps", "3", "--workers", "1",
-         "--backend", "numpy", "--quiet"]
-
-
-def _one_line(r, *needles):
-    err = r.stderr.strip()
-    assert r.exit_code == 2, (r.exit_code, r.output)
-    assert err.startswith("error:") and "\n" not in err and "Traceback" not in err, err
-    assert all(n in err for n in needles), err
-    return err
 
 
 # --------------------------------------------------------------------------- lock files
-def test_a_lock_file_that_is_a_symlink_is_refused_and_its_target_kept(tmp_path):
+@pytest.mark.parametrize("link,why", [(Path.symlink_to, "symbolic link"),
+                                      (Path.hardlink_to, "not a plain file of its own")])
+def test_a_lock_file_that_is_a_link_is_refused_and_its_target_kept(tmp_path, link, why):
     # Before: os.open(O_RDWR | O_CREAT) followed the link and truncated the target to a PID.
-    # Catches: dropping O_NOFOLLOW (the target is overwritten) or the one-line refusal (an OSError).
+    # Catches: dropping O_NOFOLLOW (a symlink's target is overwritten), the hard-link check, or the
+    # one-line refusal (an OSError).
     target = tmp_path / "precious.txt"
     target.write_text("keep me\n")
     out = tmp_path / "s.jsonl"
-    lock_path(out).symlink_to(target)
-    with pytest.raises(DataError, match="symbolic link"):
-        with exclusive_lock(out, "test"):
-            pass
-    assert target.read_text() == "keep me\n"
-    r = CliRunner().invoke(cli.main, [*SWEEP, "--out", str(out)])
-    _one_line(r, str(lock_path(out)), "symbolic link")
-    assert target.read_text() == "keep me\n" and not out.exists()
-
-
-def test_a_lock_file_that_is_a_hard_link_is_refused(tmp_path):
-    # Catches: truncating a lock file that shares its inode with another file.
-    target = tmp_path / "precious.txt"
-    target.write_text("keep me\n")
-    out = tmp_path / "s.jsonl"
-    os.link(target, lock_path(out))
-    with pytest.raises(DataError, match="not a plain file of its own"):
+    link(lock_path(out), target)
+    with pytest.raises(DataError, match=why):
         with exclusive_lock(out, "test"):
             pass
     assert target.read_text() == "keep me\n"
@@ -181,71 +152,6 @@ def test_a_parquet_of_another_sweep_without_journal_is_refused_not_replaced(tmp_
 
 
 # --------------------------------------------------------------------------- a full disk
-class _FullDisk(io.RawIOBase):
-    """A file that takes ``budget`` more bytes, then fails every write with ENOSPC."""
-
-    def __init__(self, path, budget):
-        self._f = builtins.open(path, "ab", buffering=0)
-        self.left = budget
-
-    def writable(self):
-        return True
-
-    def write(self, b):
-        if self.left <= 0:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        n = min(len(b), self.left)
-        self._f.write(bytes(b[:n]))
-        self.left -= n
-        return n
-
-    def fileno(self):
-        return self._f.fileno()
-
-    def close(self):
-        if not self.closed:
-            self._f.close()
-        super().close()
-
-
-def _keys(journal: Path) -> dict:
-    """key -> (aRMSE, log-likelihood) of a journal's records (a torn last line, cut by the full disk, left out)."""
-    text = journal.read_text()
-    out = {}
-    for ln in text[: text.rfind("\n") + 1].splitlines()[1:]:
-        obj = json.loads(ln)
-        if "d" in obj:
-            out[obj["d"]["key"]] = (obj["d"]["armse"], obj["d"]["loglik"])
-    return out
-
-
-def test_a_full_disk_during_a_sweep_is_one_line_and_resume_is_exact(tmp_path, monkeypatch):
-    # Before: the append's error was replaced by a second ENOSPC when the journal was closed:
-    # a traceback and exit 1. Catches: closing the journal without turning its OSError into one line.
-    ref = tmp_path / "ref.jsonl"
-    assert CliRunner().invoke(cli.main, [*SWEEP, "--out", str(ref)]).exit_code == 0
-    out = tmp_path / "s.jsonl"
-    header = None
-
-    def full_after_two_records(path, mode="r", **kw):
-        if mode != "a":  # the header: written before the disk fills
-            return builtins.open(path, mode, **kw)
-        nonlocal header
-        header = header or Path(path).stat().st_size
-        raw = _FullDisk(path, budget=(ref.stat().st_size - header) // 3)
-        return io.TextIOWrapper(io.BufferedWriter(raw), encoding=kw.get("encoding", "utf-8"))
-
-    monkeypatch.setattr(store_mod, "open", full_after_two_records, raising=False)
-    r = CliRunner().invoke(cli.main, [*SWEEP, "--out", str(out)])
-    _one_line(r, str(out), "disk is full")
-    monkeypatch.undo()
-    kept = _keys(out)
-    assert 0 < len(kept) < 6  # the data written before the disk filled survive
-    r = CliRunner().invoke(cli.main, [*SWEEP, "--out", str(out)])
-    assert r.exit_code == 0, r.output
-    assert _keys(out) == _keys(ref)
-
-
 def test_a_full_disk_when_the_lock_takes_its_pid_is_no_error(tmp_path, monkeypatch):
     # Catches: a failed PID write (the disk is full) stopping the run with an OSError traceback.
     import pfbench.procs as procs
