@@ -14,19 +14,19 @@ Also at the top level: ``Method`` (the method table), ``FilterResult`` (what eve
 ``run_filter(method=...)``), ``kalman`` (KF / EKF / DARE / steady-state KF), ``sweep``
 (Monte Carlo sweeps), ``resampling``, ``metrics`` and the error types.
 """
-from importlib import metadata as _metadata
-
-from . import models
 from .errors import DataError, InputError, NumericalError, PfbenchError, UnsupportedError
-
-try:
-    __version__ = _metadata.version("pfbench")
-except _metadata.PackageNotFoundError:  # running from a source tree without install
-    __version__ = "0.0.0+src"
 
 
 def __getattr__(name):
-    # Lazy imports keep `import pfbench` (and the CLI's --help) fast.
+    # Lazy imports keep `import pfbench` fast and free of numpy/numba, so the `pfbench` command's
+    # entry point (pfbench.__main__) can catch a Ctrl-C while they load.
+    if name == "__version__":
+        from importlib import metadata
+
+        try:
+            return metadata.version("pfbench")
+        except metadata.PackageNotFoundError:  # running from a source tree without install
+            return "0.0.0+src"
     if name in ("run_filter", "FilterResult", "Method"):
         from . import filters
 
@@ -39,7 +39,7 @@ def __getattr__(name):
         from .filters import guided
 
         return guided.run_guided
-    if name in ("resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends", "sweep",
+    if name in ("models", "resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends", "sweep",
                 "plants"):
         import importlib
 

@@ -12,11 +12,13 @@ Every process pool of pfbench is made by :func:`process_pool`. Its workers
 :func:`exclusive_lock` gives one writer per output: an ``fcntl.flock`` on ``<output>.lock``. The
 kernel drops the lock when its holder dies (also on ``kill -9``), so a lock left by a killed run
 is taken over without any stale-lock guesswork; a live holder makes the second command refuse
-with the holder's PID (the PID written into the lock file).
+with the holder's PID (the PID written into the lock file). The lock file is opened without
+following links and removed on release (:func:`exclusive_lock` says why that is race-free).
 """
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import signal
 import sys
@@ -24,7 +26,7 @@ import threading
 from pathlib import Path
 from typing import Callable, Iterator
 
-from .errors import InputError
+from .errors import DataError, InputError
 
 #: seconds between two parent checks of the fallback watcher thread
 WATCH_INTERVAL_S = 0.5
@@ -175,10 +177,47 @@ def lock_path(output) -> Path:
 
 def _holder(path: Path) -> str:
     try:
-        pid = path.read_text().strip()
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+        try:
+            pid = os.read(fd, 32).decode("ascii", "replace").strip()
+        finally:
+            os.close(fd)
     except OSError:
         pid = ""
     return f"PID {pid}" if pid.isdigit() else "another process"
+
+
+def _open_lock(path: Path, output, flag: str) -> int:
+    """Open (create) the lock file ``path`` without following a link: a symbolic link there (or a
+    file that is not a plain file of its own) is refused, so a link planted at ``<output>.lock``
+    cannot make pfbench truncate and write the file it points to."""
+    import stat
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP and path.is_symlink():
+            raise DataError(f"lock file {path} is a symbolic link; pfbench does not write through links: "
+                            "remove it and re-run") from None
+        from .resources import path_error
+
+        raise path_error(exc, output, flag) from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_nlink > 1:  # 0: just removed by its holder (retried)
+        os.close(fd)
+        raise DataError(f"lock file {path} is not a plain file of its own (a hard link, device or pipe); "
+                        "remove it and re-run")
+    return fd
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the file open as ``fd`` (a releasing holder unlinks it)."""
+    try:
+        a, b = os.fstat(fd), os.lstat(path)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
 
 
 @contextlib.contextmanager
@@ -187,29 +226,42 @@ def exclusive_lock(output, what: str, flag: str = "--out") -> Iterator[Path]:
 
     Raises :class:`~pfbench.errors.InputError` naming the holder's PID if another live process
     holds it, a :class:`~pfbench.errors.DataError` naming ``output`` and ``flag`` if its directory
-    cannot be used. ``what`` names the output in the message (e.g. ``"sweep store x.jsonl"``). The lock
-    file stays (removing it would race with a waiting process); it holds the last holder's PID.
+    cannot be used or the lock file is a symbolic link. ``what`` names the output in the message
+    (e.g. ``"sweep store x.jsonl"``).
+
+    The lock file is removed on release, without racing another process: the holder unlinks it
+    while it still holds the ``flock``, and an acquirer, once it has the ``flock``, checks that the
+    path still names the file it locked (a process that opened the file just before it was
+    unlinked gets the lock of a file nobody can find again); if not, it opens the path afresh.
+    A lock file left by a killed holder (the kernel dropped its flock) is simply taken over.
     """
     import fcntl
 
     path = lock_path(output)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError as exc:  # the output's directory cannot be used
-        from .resources import path_error
-
-        raise path_error(exc, output, flag) from None
-    try:
+    while True:
+        fd = _open_lock(path, output, flag)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            os.close(fd)
             raise InputError(f"{what} is being written by {_holder(path)} (lock {path}); wait for "
                              "it to finish or stop it, then re-run") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        if _same_file(fd, path):
+            break
+        os.close(fd)  # the previous holder removed it as we locked it: lock the current file
+    try:
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        except OSError:  # e.g. a full disk: the PID is only for the message of a second writer
+            pass
         yield path
     finally:
+        try:
+            if _same_file(fd, path):
+                os.unlink(path)
+        except OSError:  # a directory that became read-only: the stale file is taken over later
+            pass
         os.close(fd)  # releases the flock
 
 

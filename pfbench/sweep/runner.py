@@ -20,6 +20,7 @@ free again, the kernel releases it with its holder).
 from __future__ import annotations
 
 import os
+import re
 import signal
 import sys
 import threading
@@ -31,7 +32,7 @@ from ..errors import InputError, PfbenchError
 from ..procs import exclusive_lock, usable_cores, worker_pool
 from ..resources import path_error
 from .core import n_tasks, run_chunk, task_key, warm_up
-from .store import Store, check_store_name, export_parquet
+from .store import Store, check_store_name, export_parquet, finished_export
 
 
 @dataclass
@@ -81,6 +82,7 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
         raise InputError(f"unknown executor {executor!r}; choose local or dask")
     if scheduler:
         executor = "dask"
+        scheduler = check_scheduler(scheduler)
     if workers is None:
         workers = usable_cores()
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
@@ -90,6 +92,55 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
         check_sweep_memory(spec, workers if executor == "local" else 1)
     with exclusive_lock(out, f"sweep store {out}"):
         return _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, max_units)
+
+
+#: seconds a Dask scheduler has to accept the connection and answer the handshake, together
+HANDSHAKE_S = 8.0
+_ADDRESS = re.compile(r"(?:(tcp|tls)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):([0-9]{1,5})")
+
+
+def check_scheduler(address: str) -> str:
+    """The Dask scheduler ``address`` (``tcp://HOST:PORT``, ``tls://...`` or ``HOST:PORT``), checked
+    before the sweep touches any file: a malformed address, one where nothing answers, or a service
+    that is not a Dask scheduler is an InputError, within :data:`HANDSHAKE_S` seconds in all.
+
+    Why a handshake of our own: ``distributed.Client``'s timeout covers opening the connection but
+    not the answer, so an HTTP server on the port kept it waiting for minutes, and a service whose
+    reply was read as a frame length made it allocate exabytes ("out of memory")."""
+    m = _ADDRESS.fullmatch(str(address).strip())
+    if not m or not 0 < int(m.group(3)) < 65536:
+        raise InputError(f"--scheduler {address!r} is not a Dask scheduler address; give tcp://HOST:PORT "
+                         "(e.g. tcp://127.0.0.1:8786)")
+    address = f"{m.group(1) or 'tcp'}://{m.group(2)}:{int(m.group(3))}"
+    import asyncio
+
+    try:
+        from distributed.comm import connect
+    except ImportError:  # pragma: no cover
+        raise InputError("the dask executor needs `pip install dask[distributed]`") from None
+
+    async def identity():
+        comm = await connect(address, timeout=HANDSHAKE_S / 2)  # a refused port: its own message
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(identity(), HANDSHAKE_S))
+    except asyncio.TimeoutError:
+        raise InputError(f"--scheduler {address}: no Dask scheduler answered within {HANDSHAKE_S:g} s "
+                         "(another service on that port?)") from None
+    except OSError as exc:
+        raise InputError(f"--scheduler {address}: cannot reach a Dask scheduler there "
+                         f"({' '.join(str(exc).split()) or type(exc).__name__})") from None
+    except Exception:  # noqa: BLE001 - whatever a foreign protocol's bytes make of the decoder
+        reply = None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise InputError(f"--scheduler {address}: the service there is not a Dask scheduler (its answer "
+                         "is not a Dask handshake)")
+    return address
 
 
 def check_sweep_memory(spec: dict, workers: int) -> None:
@@ -111,11 +162,13 @@ def check_sweep_memory(spec: dict, workers: int) -> None:
 
 
 def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, max_units):
+    total = n_tasks(spec)
     try:
+        if finished_export(out, spec, overwrite=overwrite):  # its journal was removed: nothing to redo
+            return SweepReport(Path(out), total, total, 0, 0.0)
         store = Store.open(out, spec, overwrite=overwrite)
     except OSError as exc:
         raise path_error(exc, out, "--out") from None
-    total = n_tasks(spec)
     before = len(store.records)
     units = pending_units(spec, store)
     if max_units is not None:
@@ -222,8 +275,8 @@ def _run_dask(spec, units, workers, scheduler, done):
     try:
         if scheduler:
             try:
-                client = Client(scheduler, timeout="10s")
-            except OSError as exc:
+                client = Client(scheduler, timeout=f"{HANDSHAKE_S:g}s")
+            except (OSError, MemoryError) as exc:  # it answered check_scheduler but went away since
                 raise InputError(f"cannot reach Dask scheduler {scheduler}: {exc}") from None
         else:
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,

@@ -14,7 +14,8 @@ mismatch or a missing/foreign header is reported as a corrupt or foreign store w
 
 ``X.parquet`` as ``--out``: the journal lives in ``X.parquet.journal`` and the Parquet table
 (one row per task, sorted by configuration and run) is written atomically when the sweep is
-complete. ``.jsonl``: the journal is the store. Other suffixes are refused (:func:`check_store_name`).
+complete; a Parquet file already there is kept until then (a rerun without the journal finds a
+complete export of the same sweep and does nothing). ``.jsonl``: the journal is the store. Other suffixes are refused (:func:`check_store_name`).
 """
 from __future__ import annotations
 
@@ -138,9 +139,7 @@ class Store:
             fh.write(_dumps({MAGIC: FORMAT, "spec": spec, "spec_hash": spec_hash(spec)}) + "\n")
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        if Path(out) != path and Path(out).exists():
-            Path(out).unlink()  # a stale Parquet export of an older sweep
+        os.replace(tmp, path)  # a Parquet export already at ``out`` stays until its replacement is complete
         return cls(path, spec, {}, [])
 
     # ----- appending -------------------------------------------------------------------
@@ -158,16 +157,33 @@ class Store:
         except OSError as exc:  # e.g. the disk filled up: the records before this batch are kept
             from ..resources import path_error
 
+            self._abandon()
             raise path_error(exc, self.path, "--out") from None
         for r in records:
             self.records[r["key"]] = r
         if chunk is not None:
             self.chunks.append(chunk)
 
+    def _abandon(self) -> None:
+        """Close the journal after a failed write. Closing flushes what is still buffered and may fail
+        the same way; the batch is lost either way, and a partial last line is dropped on resume."""
+        fh, self._fh = self._fh, None
+        if fh is not None:
+            try:
+                fh.close()
+            except OSError:
+                pass
+
     def close(self) -> None:
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
+        """Close the journal; an OSError (e.g. a full disk) is a DataError naming it."""
+        fh, self._fh = self._fh, None
+        if fh is not None:
+            try:
+                fh.close()
+            except OSError as exc:
+                from ..resources import path_error
+
+                raise path_error(exc, self.path, "--out") from None
 
     # ----- views -----------------------------------------------------------------------
     def frame(self) -> pd.DataFrame:
@@ -218,6 +234,25 @@ def load_frame(path) -> tuple[pd.DataFrame, dict, list]:
         return frame, info["spec"], info.get("chunks", [])
     st = Store.read(path)
     return st.frame(), st.spec, st.chunks
+
+
+def finished_export(out, spec: dict, *, overwrite: bool = False) -> bool:
+    """Whether the Parquet store ``out``, found without its journal, already holds the complete
+    sweep ``spec`` (then there is nothing to do). A Parquet file of another sweep, or one that is
+    not a pfbench sweep, is refused (as a journal of another sweep is) unless ``overwrite``; it is
+    never removed here: :func:`export_parquet` replaces it when the new sweep is complete, so a
+    rerun that is killed loses no finished result."""
+    out = Path(out)
+    if overwrite or out.suffix != ".parquet" or journal_path(out).exists() or not out.is_file():
+        return False
+    from .core import n_tasks
+
+    frame, old, _ = load_frame(out)
+    if spec_hash(old) == spec_hash(spec):
+        return len(frame) >= n_tasks(spec)
+    diff = sorted(k for k in set(spec) | set(old) if spec.get(k) != old.get(k))
+    raise InputError(f"{out} holds a different sweep (differs in: {', '.join(diff)}); use another --out "
+                     "or --overwrite")
 
 
 def export_parquet(store: Store, out) -> Path:

@@ -3,9 +3,14 @@
 Tests run as root in CI, where ``chmod 0555`` does not stop a write: the unusable paths here are
 one whose parent is a regular file (ENOTDIR/EEXIST for anyone, root included), ``/proc`` (takes
 no new files) and, for the errno that cannot be produced without mounting a file system
-(EROFS, ENOSPC), an OSError injected where the file is opened.
+(EROFS, ENOSPC), an OSError injected where the file is opened, or a journal whose writes stop
+after a budget of bytes with ENOSPC (as on a full file system: part of a buffer lands, the rest
+fails, and closing the file fails again).
 """
+import builtins
 import errno
+import io
+import json
 import os
 from pathlib import Path
 
@@ -15,6 +20,8 @@ from click.testing import CliRunner
 from pfbench import cli
 from pfbench.errors import DataError
 from pfbench.sweep import make_spec
+from pfbench.procs import lock_path
+from pfbench.sweep import store as store_mod
 from pfbench.sweep.store import Store
 
 SWEEP = ["sweep", "--model", "ob1", "--particles", "10", "--runs", "1", "--steps", "3", "--workers", "1",
@@ -140,3 +147,78 @@ def test_compile_sorts_errors_into_not_applicable_and_failed(monkeypatch):
         monkeypatch.setattr(pfbench.filters, "run_filter", boom)
         row = precompile.compile_target(precompile.Target("ob1"))
         assert (row["status"], row["detail"]) == (status, str(exc))
+
+
+class _FullDisk(io.RawIOBase):
+    """A file that takes ``budget`` more bytes, then fails every write with ENOSPC."""
+
+    def __init__(self, path, budget):
+        self._f = builtins.open(path, "ab", buffering=0)
+        self.left = budget
+
+    def writable(self):
+        return True
+
+    def write(self, b):
+        if self.left <= 0:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        n = min(len(b), self.left)
+        self._f.write(bytes(b[:n]))
+        self.left -= n
+        return n
+
+    def fileno(self):
+        return self._f.fileno()
+
+    def close(self):
+        if not self.closed:
+            self._f.close()
+        super().close()
+
+
+def _keys(journal: Path) -> dict:
+    """key -> (aRMSE, log-likelihood) of a journal's records (a torn last line, cut by the full disk, left out)."""
+    text = journal.read_text()
+    out = {}
+    for ln in text[: text.rfind("\n") + 1].splitlines()[1:]:
+        obj = json.loads(ln)
+        if "d" in obj:
+            out[obj["d"]["key"]] = (obj["d"]["armse"], obj["d"]["loglik"])
+    return out
+
+
+def test_a_full_disk_during_a_sweep_is_one_line_and_resume_is_exact(tmp_path, monkeypatch):
+    # Before: the append's error was replaced by a second ENOSPC when the journal was closed:
+    # a traceback and exit 1. Catches: closing the journal without turning its OSError into one line.
+    ref = tmp_path / "ref.jsonl"
+    assert CliRunner().invoke(cli.main, [*SWEEP, "--runs", "6", "--out", str(ref)]).exit_code == 0
+    out = tmp_path / "s.jsonl"
+    header = None
+
+    def full_after_two_records(path, mode="r", **kw):
+        if mode != "a":  # the header: written before the disk fills
+            return builtins.open(path, mode, **kw)
+        nonlocal header
+        header = header or Path(path).stat().st_size
+        raw = _FullDisk(path, budget=(ref.stat().st_size - header) // 3)
+        return io.TextIOWrapper(io.BufferedWriter(raw), encoding=kw.get("encoding", "utf-8"))
+
+    monkeypatch.setattr(store_mod, "open", full_after_two_records, raising=False)
+    r = CliRunner().invoke(cli.main, [*SWEEP, "--runs", "6", "--out", str(out)])
+    _one_line(r, str(out), "disk is full")
+    monkeypatch.undo()
+    kept = _keys(out)
+    assert 0 < len(kept) < 6  # the data written before the disk filled survive
+    r = CliRunner().invoke(cli.main, [*SWEEP, "--runs", "6", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert _keys(out) == _keys(ref)
+
+
+def test_a_lock_file_that_is_a_symlink_is_one_line(tmp_path):
+    # Before: the link's target was truncated to a PID. Catches: an OSError (ELOOP) left unconverted.
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me\n")
+    out = tmp_path / "s.jsonl"
+    lock_path(out).symlink_to(target)
+    _one_line(CliRunner().invoke(cli.main, [*SWEEP, "--out", str(out)]), str(lock_path(out)), "symbolic link")
+    assert target.read_text() == "keep me\n" and not out.exists()
