@@ -175,12 +175,16 @@ def recipe(id: str, *, title: str, aliases: Iterable[str] = (), quick_cost: str 
 
 
 def discover() -> dict[str, Recipe]:
-    """Import every module under ``reproductions`` so that their recipes register."""
+    """Import every module under :mod:`pfbench.reproductions` so that their recipes register.
+
+    The recipes live in the ``reproductions/`` folder at the top of the repository; in a checkout
+    ``pfbench/reproductions`` is a link to it, and the wheel installs it as ``pfbench.reproductions``
+    (never as a top-level ``reproductions``, a name other packages may use)."""
     global _DISCOVERED
     if not _DISCOVERED:
-        import reproductions
+        from . import reproductions
 
-        for mod in pkgutil.walk_packages(reproductions.__path__, prefix="reproductions."):
+        for mod in pkgutil.walk_packages(reproductions.__path__, prefix=f"{reproductions.__name__}."):
             importlib.import_module(mod.name)
         _DISCOVERED = True
     return dict(sorted(_REGISTRY.items()))
@@ -416,11 +420,11 @@ class RecipeContext:
         self.notes.append(text)
 
     def progress(self, iterable=None, total: int | None = None, desc: str = ""):
-        """A tqdm progress bar (to stderr), shown for long work unless quiet."""
-        from tqdm.auto import tqdm
+        """A progress bar (to stderr) for long work, unless quiet or stderr is not a terminal."""
+        from .progress import progress_bar
 
-        return tqdm(iterable, total=total, desc=desc or self.recipe.id, disable=self.quiet,
-                    file=sys.stderr, leave=False, dynamic_ncols=True)
+        return progress_bar(iterable, show=not self.quiet, total=total, desc=desc or self.recipe.id,
+                            leave=False, dynamic_ncols=True)
 
     def log(self, text: str) -> None:
         if not self.quiet:
@@ -515,8 +519,7 @@ def code_fingerprint(rec: Recipe) -> str:
     (:func:`pfbench.backends.cache.package_fingerprint`) and the recipe's paper folder."""
     import hashlib
 
-    import reproductions
-
+    from . import reproductions
     from .backends.cache import package_fingerprint
 
     h = hashlib.sha256(package_fingerprint().encode())

@@ -37,7 +37,6 @@ every timing but the startup section's: each configuration runs once untimed fir
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import click
@@ -60,7 +59,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
               with_c: bool = True) -> dict:
     """The main section (see the module docstring); returns the provenance record written to
     ``bench.json``."""
-    from tqdm.auto import tqdm
+    from ..progress import progress_bar
 
     from .. import models
     from ..provenance import provenance
@@ -70,7 +69,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     configs = QUICK_CONFIGS if quick else CONFIGS
     thread_cfgs = QUICK_THREAD_CONFIGS if quick else THREAD_CONFIGS
     n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1 + 1 + 1
-    bar = tqdm(total=n_jobs, desc="bench", disable=not progress, file=sys.stderr, leave=False)
+    bar = progress_bar(show=progress, total=n_jobs, desc="bench", leave=False)
     rows, floors, c_rows = [], [], []
     c_note = None if with_c else "not run: --no-c"
     for m, n in configs:
