@@ -54,6 +54,7 @@ import json
 import math
 import os
 import pkgutil
+import re
 import shutil
 import sys
 import time
@@ -209,6 +210,14 @@ def resolve(name: str) -> Recipe:
     hint = did_you_mean(name, list(reg) + [a for r in reg.values() for a in r.aliases]
                         + [r.name for r in reg.values()])
     raise InputError(f"unknown recipe {name!r}{hint} (`pfbench list` shows the recipes)")
+
+
+def same_name(name: str, rec: Recipe) -> list[str]:
+    """The IDs of the other papers' recipes called ``name`` when ``name`` is bare and picked
+    ``rec`` (``fig5`` is ``embedded:fig5``; ``multipdf:fig5`` and ``rtd:fig5`` exist too)."""
+    if ":" in name:
+        return []
+    return [r.id for r in discover().values() if r.name == name and r is not rec]
 
 
 def select(paper: str | None = None) -> list[Recipe]:
@@ -429,6 +438,13 @@ class RecipeContext:
     def log(self, text: str) -> None:
         if not self.quiet:
             print(text, file=sys.stderr)
+
+
+def cost_seconds(cost: str) -> float | None:
+    """A recipe's cost text in seconds (``"~2 s"`` -> 2.0, ``"~3 min (+~1 min ...)"`` -> 180.0, the
+    leading estimate), for ``pfbench list --json``; None if the text does not start that way."""
+    m = re.match(r"~?\s*(\d+(?:\.\d+)?)\s*(s|min|h)\b", cost.strip())
+    return None if m is None else float(m.group(1)) * {"s": 1, "min": 60, "h": 3600}[m.group(2)]
 
 
 def format_comparisons(comparisons: list[Comparison]) -> str:

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import click
 
+from ..clitypes import OUT_FILE
 from .floor import breakdown_ns, floor_ns
 from .timing import filter_ns, interleaved, paired_ratio, particles_ns, ratio_range
 
@@ -355,7 +356,7 @@ def _section_paths(out_path) -> dict:
               help="Cold starts per method (each on a fresh, empty cache; expensive).")
 @click.option("--no-particles", is_flag=True, help="Skip the `particles` library comparison.")
 @click.option("--no-c", is_flag=True, help="Skip the C reference.")
-@click.option("--out", "out_path", type=click.Path(dir_okay=False), default="results/bench/bench.json",
+@click.option("--out", "out_path", **OUT_FILE, default="results/bench/bench.json",
               show_default=True, help="Main JSON; the other sections write beside it.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
 def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_particles, no_c, out_path, as_json):
