@@ -29,6 +29,7 @@ from pathlib import Path
 
 import click
 
+from .clitypes import OUT_DIR, OUT_FILE, ChoiceList, complete_models, complete_papers, complete_recipes
 from .errors import PfbenchError
 from .filters.inputs import BACKENDS, DTYPES
 from .filters.methods import ESTIMATES, METHODS
@@ -169,6 +170,7 @@ def main(model_files):
       pfbench reproduce fig5            # one recipe, quick mode (--full: paper scale)
       pfbench run --model ob1 --method bootstrap --particles 1000 --steps 1000
       pfbench run --model ob3:v4 --method mpf --particles 200
+      pfbench models                    # the models: dimensions, supported methods
       pfbench info                      # CPU, cores, numba threading layer, versions
       pfbench --models my_model.py mcu emulate --model my_growth
     """
@@ -184,7 +186,7 @@ def main(model_files):
 
 # --------------------------------------------------------------------------- run
 MODEL_HELP = ("Registered model, optionally with a variant: ob1, ob3:v4 (= --param version=4); "
-              "`pfbench info` lists the models.")
+              "`pfbench models` lists them.")
 PARAM_HELP = "Model parameter KEY=VALUE (repeatable; JSON-typed: 3 int, 0.5 float, true, text)."
 
 
@@ -200,7 +202,7 @@ def truth_stream(seed: int):
 
 
 @main.command()
-@click.option("--model", "model_name", required=True, help=MODEL_HELP)
+@click.option("--model", "model_name", required=True, help=MODEL_HELP, shell_complete=complete_models)
 @click.option("--method", type=click.Choice(METHODS), default="bootstrap", show_default=True,
               help="Filter: the particle methods, mpf (marginalized PF on the model's linear "
                    "substructure), guided (the model's proposal) or kalman.")
@@ -229,7 +231,7 @@ def truth_stream(seed: int):
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help=PARAM_HELP)
 @click.option("--data", type=click.Path(dir_okay=False), default=None,
               help="CSV log (time_s, y..., u...) to filter instead of a simulation.")
-@click.option("--out", "out_file", type=click.Path(dir_okay=False), default=None,
+@click.option("--out", "out_file", **OUT_FILE, default=None,
               help="Write the per-step estimates, variances, ESS and log-likelihood increments to this "
                    ".csv or .parquet file (and the run's provenance to <file>.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
@@ -320,14 +322,14 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
 
 # --------------------------------------------------------------------------- compile
 @main.command("compile")
-@click.option("--model", "model_names", default=None, metavar="MODEL[,MODEL...]",
+@click.option("--model", "model_names", default=None, metavar="MODEL[,MODEL...]", shell_complete=complete_models,
               help="Model specs as for `run`, comma-separated (default: every registered model).")
-@click.option("--method", "methods", default="bootstrap", show_default=True,
-              help=f"Comma-separated methods: {', '.join(METHODS)}.")
-@click.option("--resampling", "schemes", default="systematic", show_default=True,
-              help=f"Comma-separated schemes: {', '.join(SCHEMES)}.")
-@click.option("--dtype", "dtypes", default="float64", show_default=True,
-              help=f"Comma-separated particle dtypes: {', '.join(DTYPES)}.")
+@click.option("--method", "methods", type=ChoiceList(METHODS), default="bootstrap", show_default=True,
+              metavar="METHOD[,METHOD...]", help=f"Comma-separated methods: {', '.join(METHODS)}.")
+@click.option("--resampling", "schemes", type=ChoiceList(SCHEMES), default="systematic", show_default=True,
+              metavar="SCHEME[,SCHEME...]", help=f"Comma-separated schemes: {', '.join(SCHEMES)}.")
+@click.option("--dtype", "dtypes", type=ChoiceList(DTYPES), default="float64", show_default=True,
+              metavar="DTYPE[,DTYPE...]", help=f"Comma-separated particle dtypes: {', '.join(DTYPES)}.")
 @click.option("--all-threads", is_flag=True,
               help="Also the all-threads kernel of one particle filter (used above 8192 particles "
                    "unless --threads 1).")
@@ -369,10 +371,11 @@ def compile_cmd(model_names, methods, schemes, dtypes, all_threads, jobs, as_jso
 
 # --------------------------------------------------------------------------- recipes
 @main.command("list")
-@click.option("--json", "as_json", is_flag=True)
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the recipes as JSON (costs also in seconds: quick_cost_s, full_cost_s).")
 def list_cmd(as_json):
     """List the registered recipes (ID, quick/full cost, title, --option keys, --data)."""
-    from .recipes import discover
+    from .recipes import cost_seconds, discover
 
     reg = discover()
     if as_json:
@@ -380,6 +383,7 @@ def list_cmd(as_json):
 
         click.echo(to_json([{"id": r.id, "aliases": list(r.aliases), "paper": r.paper, "title": r.title,
                                 "quick_cost": r.quick_cost, "full_cost": r.full_cost,
+                                "quick_cost_s": cost_seconds(r.quick_cost), "full_cost_s": cost_seconds(r.full_cost),
                                 "needs": list(r.needs), "reads_data": r.reads_data,
                                 "options": {o.key: o.as_dict() for o in r.options}}
                                for r in reg.values()]))
@@ -400,12 +404,19 @@ def list_cmd(as_json):
 
 
 @main.command("options")
-@click.argument("recipe_id")
-def options_cmd(recipe_id):
+@click.argument("recipe_id", shell_complete=complete_recipes)
+@click.option("--json", "as_json", is_flag=True, help="Print the recipe's options as one JSON object.")
+def options_cmd(recipe_id, as_json):
     """The --option keys a recipe takes (type and help) and whether it reads --data."""
     from .recipes import resolve
 
     rec = resolve(recipe_id)
+    if as_json:
+        from .io import to_json
+
+        click.echo(to_json({"id": rec.id, "title": rec.title, "options": {o.key: o.as_dict() for o in rec.options},
+                            "reads_data": rec.reads_data}))
+        return
     click.echo(f"{rec.id}: {rec.title}")
     if not rec.options:
         click.echo("  (no --option keys)")
@@ -417,13 +428,15 @@ def options_cmd(recipe_id):
 
 
 @main.command()
-@click.argument("recipe_ids", nargs=-1)
+@click.argument("recipe_ids", nargs=-1, shell_complete=complete_recipes)
 @click.option("--all", "run_all", is_flag=True, help="Run every registered recipe.")
-@click.option("--paper", default=None, help="Every recipe of this paper (alone or with --all).")
+@click.option("--paper", default=None, shell_complete=complete_papers,
+              help="Every recipe of this paper (alone or with --all).")
 @click.option("--full", is_flag=True, help="Paper scale (slow; shows a progress bar).")
 @click.option("--backend", type=click.Choice(BACKENDS), default="numba", show_default=True)
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-@click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
+@click.option("--out", "out_root", **OUT_DIR, default="results", show_default=True,
+              help="Results folder (results/<paper>/ per recipe).")
 @click.option("--data", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Run the recipe on a real log instead of a simulation (where supported).")
 @click.option("--option", "options", multiple=True, metavar="KEY=VALUE",
@@ -431,13 +444,19 @@ def options_cmd(recipe_id):
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True,
               help="With --all: rerun recipes whose verified result is already up to date.")
-def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, options, quiet, force):
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON object when done: per recipe its status, result folder, comparisons, "
+                   "claims and notes (the progress lines go to stderr).")
+def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, options, quiet, force, as_json):
     """Run recipe(s): `pfbench reproduce fig5`, `pfbench reproduce multipdf:fig3 --full`.
 
     With --all, a recipe whose result set verifies and was made by the same code with the same
     mode, seed, backend, options and data is skipped as up to date, so an interrupted
     `reproduce --all --full` resumes where it stopped (--force reruns everything)."""
     from . import recipes
+
+    def say(text):  # with --json, stdout holds only the JSON object
+        click.echo(text, err=as_json)
 
     if run_all and recipe_ids:
         raise click.UsageError("give recipe IDs or --all, not both")
@@ -449,6 +468,9 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
         recs = recipes.select(paper)
     elif recipe_ids:
         recs = [recipes.resolve(r) for r in recipe_ids]
+        for name, rec in zip(recipe_ids, recs):
+            if others := recipes.same_name(name, rec):
+                click.echo(f"note: {name} is {rec.id}; {' and '.join(others)} also exist", err=True)
     else:
         raise click.UsageError("name a recipe (see `pfbench list`) or pass --all")
     opts = parse_key_values(options, "--option")
@@ -463,20 +485,21 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
 
         check_known(opts, {k for r in recs for k in r.option_keys}, "an option of the selected recipes")
     recipes.check_data(recs, data)
-    failed = []
+    failed, done = [], []
     for k, rec in enumerate(recs, 1):
         step = f"[{k}/{len(recs)}] " if len(recs) > 1 else ""
         if run_all and rec.needs and not recipes.needs_met(rec.needs):
-            click.echo(f"-- {step}{rec.id}: skipped ({recipes.needs_hint(rec.needs)})")
+            say(f"-- {step}{rec.id}: skipped ({recipes.needs_hint(rec.needs)})")
+            done.append({"id": rec.id, "status": "skipped", "reason": recipes.needs_hint(rec.needs)})
             continue
         rec_data = data if (rec.reads_data or len(recs) == 1) else None
         if run_all and not force and recipes.up_to_date(rec, out_root=out_root, full=full, seed=seed,
                                                         backend=backend, options=per_recipe[rec.id],
                                                         data=rec_data):
-            click.echo(f"-- {step}{rec.id}: up to date (verified result of this code and settings; "
-                       "--force reruns)")
+            say(f"-- {step}{rec.id}: up to date (verified result of this code and settings; --force reruns)")
+            done.append({"id": rec.id, "status": "up to date"})
             continue
-        click.echo(f"== {step}{rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
+        say(f"== {step}{rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
         try:
             ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root,
                               data=rec_data, quiet=quiet, options=per_recipe[rec.id])
@@ -484,7 +507,13 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
             if not run_all:
                 raise
             failed.append(rec.id)
+            done.append({"id": rec.id, "status": "failed", "error": _one_line(exc)})
             click.echo(f"error: {rec.id}: {_one_line(exc)}", err=True)
+            continue
+        done.append({"id": rec.id, "status": "ran", "out_dir": str(ctx.out_dir), "files": list(ctx.outputs),
+                     "elapsed_s": ctx.extra["elapsed_s"], "comparisons": [c.as_dict() for c in ctx.comparisons],
+                     "claims": ctx.claims, "notes": ctx.notes})
+        if as_json:
             continue
         click.echo(recipes.format_comparisons(ctx.comparisons))
         for c in ctx.claims:
@@ -492,17 +521,23 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
         for n in ctx.notes:
             click.echo(f"note: {n}")
         click.echo(f"-> {ctx.out_dir} ({len(ctx.outputs)} files, {ctx.extra['elapsed_s']:.1f} s)")
+    if as_json:
+        from .io import to_json
+
+        click.echo(to_json({"mode": "full" if full else "quick", "backend": backend, "seed": seed,
+                            "out": str(out_root), "recipes": done}, default=str))
     if failed:
         raise PfbenchError(f"{len(failed)} recipe(s) failed: {', '.join(failed)}")
 
 
 @main.command()
-@click.option("--out", "out_root", type=click.Path(file_okay=False), default="results", show_default=True)
+@click.option("--out", "out_root", **OUT_DIR, default="results", show_default=True,
+              help="Results folder to report on (REPORT.md is written there).")
 @click.option("--strict", is_flag=True,
               help="Exit 2 if a result is damaged: a record that is not valid JSON, or an "
                    "artefact that is missing or differs from its record's checksum.")
 @click.option("--json", "as_json", is_flag=True, help="Print the scorecard, claims and problems as JSON.")
-@click.option("--compare", "compare", type=click.Path(exists=True, file_okay=False), default=None,
+@click.option("--compare", "compare", type=click.Path(exists=True, file_okay=False), metavar="DIR", default=None,
               help="Another results folder (e.g. a quick run kept beside a --full one): list every "
                    "claim whose verdict differs from it.")
 def report(out_root, strict, as_json, compare):
@@ -540,7 +575,29 @@ def report(out_root, strict, as_json, compare):
                            f"(listed in {path})")
 
 
-# --------------------------------------------------------------------------- info / bench
+# --------------------------------------------------------------------------- models / info
+@main.command("models")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object per model, in a list.")
+def models_cmd(as_json):
+    """The registered models: description, dimensions (n_x states, n_y measurements, n_u inputs)
+    and which of the methods that need declared structure (mpf, guided, kalman) each supports, at
+    its default parameters."""
+    from . import models
+    from .models.catalog import describe
+
+    rows = [describe(name) for name in models.names()]
+    if as_json:
+        from .io import to_json
+
+        click.echo(to_json(rows))
+        return
+    w = max((len(r["name"]) for r in rows), default=4)
+    click.echo(f"{'model'.ljust(w)}  n_x  n_y  n_u  {'supports':<18}  description")
+    for r in rows:
+        also = ", ".join(m for m, ok in r["supports"].items() if ok) or "-"
+        click.echo(f"{r['name'].ljust(w)}  {r['n_x']:>3}  {r['n_y']:>3}  {r['n_u']:>3}  {also:<18}  {r['description']}")
+
+
 @main.command()
 @click.option("--json", "as_json", is_flag=True)
 def info(as_json):
@@ -566,7 +623,7 @@ def info(as_json):
     click.echo(f"{'cupy':>22}: {g.get('cupy') or 'not installed'}")
     click.echo(f"{'gpu':>22}: {g.get('gpu')}" + (f" ({g['gpu_memory_bytes'] / 2**30:.0f} GiB, CUDA runtime "
                                                  f"{g['cuda_runtime']})" if g.get("gpu_memory_bytes") else ""))
-    click.echo(f"{'models':>22}: {', '.join(data['models'])}")
+    click.echo(f"{'models':>22}: {', '.join(data['models'])} (`pfbench models` describes them)")
 
 
 #: subcommand groups that live next to their subsystem: name -> (module, attribute), imported on use

@@ -98,9 +98,8 @@ def compile_all(todo: list[Target], jobs: int | None = None, progress: bool = Tr
     """Compile every target, the targets of one model in one process (they share the model's
     compiled functions), ``jobs`` processes at a time (default: all cores; 1: this process).
     Rows in the order of ``todo``."""
-    import sys
 
-    from tqdm.auto import tqdm
+    from .progress import progress_bar
 
     from .procs import usable_cores
 
@@ -109,7 +108,7 @@ def compile_all(todo: list[Target], jobs: int | None = None, progress: bool = Tr
         groups.setdefault(t.model, []).append(t)
     jobs = max(1, min(int(jobs or usable_cores()), len(groups)))
     done: dict[Target, dict] = {}
-    with tqdm(total=len(todo), desc="compile", disable=not progress, file=sys.stderr, leave=False) as bar:
+    with progress_bar(show=progress, total=len(todo), desc="compile", leave=False) as bar:
         if jobs == 1:
             for group in groups.values():
                 for t in group:

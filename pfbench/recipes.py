@@ -54,6 +54,7 @@ import json
 import math
 import os
 import pkgutil
+import re
 import shutil
 import sys
 import time
@@ -175,12 +176,16 @@ def recipe(id: str, *, title: str, aliases: Iterable[str] = (), quick_cost: str 
 
 
 def discover() -> dict[str, Recipe]:
-    """Import every module under ``reproductions`` so that their recipes register."""
+    """Import every module under :mod:`pfbench.reproductions` so that their recipes register.
+
+    The recipes live in the ``reproductions/`` folder at the top of the repository; in a checkout
+    ``pfbench/reproductions`` is a link to it, and the wheel installs it as ``pfbench.reproductions``
+    (never as a top-level ``reproductions``, a name other packages may use)."""
     global _DISCOVERED
     if not _DISCOVERED:
-        import reproductions
+        from . import reproductions
 
-        for mod in pkgutil.walk_packages(reproductions.__path__, prefix="reproductions."):
+        for mod in pkgutil.walk_packages(reproductions.__path__, prefix=f"{reproductions.__name__}."):
             importlib.import_module(mod.name)
         _DISCOVERED = True
     return dict(sorted(_REGISTRY.items()))
@@ -205,6 +210,14 @@ def resolve(name: str) -> Recipe:
     hint = did_you_mean(name, list(reg) + [a for r in reg.values() for a in r.aliases]
                         + [r.name for r in reg.values()])
     raise InputError(f"unknown recipe {name!r}{hint} (`pfbench list` shows the recipes)")
+
+
+def same_name(name: str, rec: Recipe) -> list[str]:
+    """The IDs of the other papers' recipes called ``name`` when ``name`` is bare and picked
+    ``rec`` (``fig5`` is ``embedded:fig5``; ``multipdf:fig5`` and ``rtd:fig5`` exist too)."""
+    if ":" in name:
+        return []
+    return [r.id for r in discover().values() if r.name == name and r is not rec]
 
 
 def select(paper: str | None = None) -> list[Recipe]:
@@ -416,15 +429,22 @@ class RecipeContext:
         self.notes.append(text)
 
     def progress(self, iterable=None, total: int | None = None, desc: str = ""):
-        """A tqdm progress bar (to stderr), shown for long work unless quiet."""
-        from tqdm.auto import tqdm
+        """A progress bar (to stderr) for long work, unless quiet or stderr is not a terminal."""
+        from .progress import progress_bar
 
-        return tqdm(iterable, total=total, desc=desc or self.recipe.id, disable=self.quiet,
-                    file=sys.stderr, leave=False, dynamic_ncols=True)
+        return progress_bar(iterable, show=not self.quiet, total=total, desc=desc or self.recipe.id,
+                            leave=False, dynamic_ncols=True)
 
     def log(self, text: str) -> None:
         if not self.quiet:
             print(text, file=sys.stderr)
+
+
+def cost_seconds(cost: str) -> float | None:
+    """A recipe's cost text in seconds (``"~2 s"`` -> 2.0, ``"~3 min (+~1 min ...)"`` -> 180.0, the
+    leading estimate), for ``pfbench list --json``; None if the text does not start that way."""
+    m = re.match(r"~?\s*(\d+(?:\.\d+)?)\s*(s|min|h)\b", cost.strip())
+    return None if m is None else float(m.group(1)) * {"s": 1, "min": 60, "h": 3600}[m.group(2)]
 
 
 def format_comparisons(comparisons: list[Comparison]) -> str:
@@ -515,8 +535,7 @@ def code_fingerprint(rec: Recipe) -> str:
     (:func:`pfbench.backends.cache.package_fingerprint`) and the recipe's paper folder."""
     import hashlib
 
-    import reproductions
-
+    from . import reproductions
     from .backends.cache import package_fingerprint
 
     h = hashlib.sha256(package_fingerprint().encode())

@@ -331,7 +331,7 @@ def _resolve(func, node):
     elif isinstance(node.func, ast.Attribute) and isinstance(node.func.value, ast.Name):
         mod = scope.get(node.func.value.id)
         obj = getattr(mod, node.func.attr, None) if isinstance(mod, types.ModuleType) else None
-    if inspect.isfunction(obj) and obj.__module__.startswith("reproductions"):
+    if inspect.isfunction(obj) and obj.__module__.startswith("pfbench.reproductions"):
         return inspect.unwrap(obj)
     return None
 

@@ -7,7 +7,6 @@ their compiled kernels in ``numba_mpf.py`` / ``numba_guided.py``.
 """
 from __future__ import annotations
 
-from ..filters.inputs import BACKENDS as NAMES
 from ..filters.inputs import check_backend
 
 

@@ -89,7 +89,10 @@ def check_cache_dir() -> Path:
 
 
 def package_fingerprint() -> str:
-    """Hash of every ``.py`` file of the installed package plus the Python, numba and NumPy versions."""
+    """Hash of every ``.py`` file of the installed package plus the Python, numba and NumPy versions.
+
+    The recipes (``pfbench/reproductions``: a link in a checkout, a folder in the wheel) are left
+    out the same way in both; :func:`pfbench.recipes.code_fingerprint` adds a recipe's own folder."""
     global _FINGERPRINT
     with _LOCK:
         if _FINGERPRINT is None:
@@ -99,7 +102,7 @@ def package_fingerprint() -> str:
             h = hashlib.sha256()
             h.update(f"{sys.version_info[:3]}|{numba.__version__}|{numpy.__version__}".encode())
             for path in sorted(PACKAGE_DIR.rglob("*.py")):
-                if "__pycache__" in path.parts:
+                if "__pycache__" in path.parts or path.relative_to(PACKAGE_DIR).parts[0] == "reproductions":
                     continue
                 h.update(str(path.relative_to(PACKAGE_DIR)).encode() + b"\0")
                 h.update(path.read_bytes() + b"\0")

@@ -329,7 +329,7 @@ class Fused:
 def _check_fused(cp, fz: Fused, model) -> None:
     """Run every fused step once against the namespace step on a small host problem; drop those that
     fail or disagree (their reason goes to ``fz.reasons``)."""
-    F, n, n_x = 2, 3000, fz.n_x
+    F, n = 2, 3000
     key = (12345, 678)
     rng = np.random.default_rng(5)
     p = model.params()

@@ -37,11 +37,11 @@ every timing but the startup section's: each configuration runs once untimed fir
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import click
 
+from ..clitypes import OUT_FILE
 from .floor import breakdown_ns, floor_ns
 from .timing import filter_ns, interleaved, paired_ratio, particles_ns, ratio_range
 
@@ -60,7 +60,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
               with_c: bool = True) -> dict:
     """The main section (see the module docstring); returns the provenance record written to
     ``bench.json``."""
-    from tqdm.auto import tqdm
+    from ..progress import progress_bar
 
     from .. import models
     from ..provenance import provenance
@@ -70,7 +70,7 @@ def run_bench(repeats: int = 5, quick: bool = False, with_particles: bool = True
     configs = QUICK_CONFIGS if quick else CONFIGS
     thread_cfgs = QUICK_THREAD_CONFIGS if quick else THREAD_CONFIGS
     n_jobs = len(configs) * (3 + 4 + 2) + 2 * len(thread_cfgs) + 2 + 1 + 1 + 1 + 1 + 1
-    bar = tqdm(total=n_jobs, desc="bench", disable=not progress, file=sys.stderr, leave=False)
+    bar = progress_bar(show=progress, total=n_jobs, desc="bench", leave=False)
     rows, floors, c_rows = [], [], []
     c_note = None if with_c else "not run: --no-c"
     for m, n in configs:
@@ -356,7 +356,7 @@ def _section_paths(out_path) -> dict:
               help="Cold starts per method (each on a fresh, empty cache; expensive).")
 @click.option("--no-particles", is_flag=True, help="Skip the `particles` library comparison.")
 @click.option("--no-c", is_flag=True, help="Skip the C reference.")
-@click.option("--out", "out_path", type=click.Path(dir_okay=False), default="results/bench/bench.json",
+@click.option("--out", "out_path", **OUT_FILE, default="results/bench/bench.json",
               show_default=True, help="Main JSON; the other sections write beside it.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
 def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_particles, no_c, out_path, as_json):

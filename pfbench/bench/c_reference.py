@@ -23,7 +23,6 @@ import shutil
 import statistics
 import subprocess
 import tempfile
-from pathlib import Path
 
 import numpy as np
 

@@ -19,7 +19,6 @@ N_p = 10^6 that is about 13 ms, about one step on 1 thread.
 from __future__ import annotations
 
 import statistics
-import sys
 
 ENGINES = {"numba_1t": "numba, 1 thread", "numba_all": "numba, all threads", "numpy": "NumPy",
            "c_fast": "C, fast RNG"}
@@ -63,7 +62,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
                 min_steps: int = MIN_STEPS, engines=tuple(ENGINES), progress: bool = True,
                 gpu: bool = True) -> dict:
     """Time every engine at every size; returns the table, the top's limit and the ratios."""
-    from tqdm.auto import tqdm
+    from ..progress import progress_bar
 
     from .. import models
     from ..errors import InputError
@@ -78,8 +77,7 @@ def run_scaling(repeats: int = 3, sizes=SIZES, target: int = TARGET_PARTICLE_STE
     jobs = plan(sizes, target, min_steps)
     rows = []
     c_note = None
-    bar = tqdm(total=len(jobs) * len(engines), desc="bench --scaling", disable=not progress,
-               file=sys.stderr, leave=False)
+    bar = progress_bar(show=progress, total=len(jobs) * len(engines), desc="bench --scaling", leave=False)
     paired, spread = {}, {}  # N_p -> median over rounds of the 1-thread / all-threads time; its [min, max]
     for n, m in jobs:
         traj = None

@@ -70,14 +70,14 @@ def _timed(cmd: list[str], cache: Path, helper: bool = True) -> tuple[float, str
 
 def run_startup(repeats: int = 3, cold_repeats: int = 1, cases=CASES, progress: bool = True) -> dict:
     """Cold and warm wall seconds of every case; ``{"cases": [...], "targets": [...], ...}``."""
-    from tqdm.auto import tqdm
+    from ..progress import progress_bar
 
     from .report import check
 
     stamp0 = _source_stamp()
     out = []
-    bar = tqdm(total=len(cases) * (2 * cold_repeats + repeats), desc="bench --startup", disable=not progress,
-               file=sys.stderr, leave=False)
+    bar = progress_bar(show=progress, total=len(cases) * (2 * cold_repeats + repeats), desc="bench --startup",
+                       leave=False)
     for method, model, extra in cases:
         cmd = command(method, model, extra)
         stamp = _source_stamp()

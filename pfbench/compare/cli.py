@@ -8,11 +8,12 @@ from pathlib import Path
 
 import click
 
+from ..clitypes import OUT_DIR, complete_tasks
 from ..errors import PfbenchError
 
 
 @click.command("compare")
-@click.option("--task", "task_names", required=True, metavar="T[,T...]",
+@click.option("--task", "task_names", required=True, metavar="T[,T...]", shell_complete=complete_tasks,
               help="Task name(s), comma-separated (`pfbench tasks` lists them).")
 @click.option("--contender", "contenders", multiple=True, required=True, metavar="[NAME=]SPEC",
               help="pfbench:METHOD[:k=v,...], py:PATH.py:FUNC, py:module:FUNC, cmd:PROGRAM ARGS..., "
@@ -23,7 +24,7 @@ from ..errors import PfbenchError
 @click.option("--baseline", default=None, help="Contender the others are paired against (default: the first).")
 @click.option("--timeout", "timeout_s", type=float, default=None,
               help="Seconds one run of an external (cmd:, out-of-process particles:) contender may take.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+@click.option("--out", "out_dir", **OUT_DIR, default=None,
               help="Write leaderboard.md, compare.json, <task>.png and the resumable journal here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object.")
 @click.option("--workers", type=int, default=1, show_default=True,

@@ -5,6 +5,7 @@ import math
 
 import click
 
+from ..clitypes import complete_models
 from ..filters.methods import PARTICLE_METHODS
 from ..io import to_json
 from ..options import parse_key_values
@@ -37,7 +38,7 @@ def _positive_float(name, allow_zero=False):
 
 
 @mcu.command()
-@click.option("--model", "model_name", default="ob1", show_default=True,
+@click.option("--model", "model_name", default="ob1", show_default=True, shell_complete=complete_models,
               help="Registered model, optionally with a variant (ob3:v4).")
 @click.option("--steps", type=int, default=1000, show_default=True, callback=_positive_int("steps"))
 @click.option("--particles", type=int, default=1000, show_default=True, callback=_positive_int("particles"))
@@ -127,7 +128,7 @@ def _format(r: dict) -> str:
 
 
 @mcu.command()
-@click.option("--model", "model_name", default="ob1", show_default=True,
+@click.option("--model", "model_name", default="ob1", show_default=True, shell_complete=complete_models,
               help="Registered model, optionally with a variant (ob3:v4).")
 @click.option("--steps", type=int, default=1000, show_default=True, callback=_positive_int("steps"),
               help="Run length M (per-step cost is averaged over min(M, 100) steps; RAM with --history).")

@@ -184,7 +184,7 @@ class CountingArray(np.ndarray):
         name = ufunc.__name__
         if method == "__call__":
             if name == "matmul":
-                a, b = np.asarray(raw_in[0]), np.asarray(raw_in[1])
+                a = np.asarray(raw_in[0])
                 k = a.shape[-1] if a.ndim else 1
                 cnt.add("mul", res_size * k)
                 cnt.add("add", res_size * max(k - 1, 0))
@@ -357,7 +357,7 @@ def _count_function(cnt: OpCounter, name: str, args, raw_args, raw_kwargs, resul
         cnt.add("load", n)
         cnt.add("store", n)
     elif name in ("dot", "inner", "vdot"):
-        a, b = np.asarray(raw_args[0]), np.asarray(raw_args[1])
+        a = np.asarray(raw_args[0])
         k = a.shape[-1] if a.ndim else 1
         n = max(int(np.size(result)), 1)
         cnt.add("mul", n * k)

@@ -152,7 +152,7 @@ def classify(ins: Insn, t: dict) -> tuple[str, dict, str | None, bool]:
     c, sc = t["cycles"], t["scenarios"]
     base, cond = split_mnemonic(ins.mnemonic)
     ops = ins.ops.split("@")[0].split(";")[0]
-    kind, single = None, False
+    kind = None
 
     def same(v):
         return {s: v for s in SCENARIOS}

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import click
 
+from ..clitypes import complete_models
 from ..errors import InputError, PfbenchError
 
 
@@ -28,7 +29,7 @@ def _parse_configs(text: str | None):
 
 
 @click.command()
-@click.option("--model", "model_name", default=None, metavar="NAME",
+@click.option("--model", "model_name", default=None, metavar="NAME", shell_complete=complete_models,
               help="Run this registered model's OWN compiled code (e.g. ob1, ob3:v4, pmsm) in the "
                    "generic C harness. Without --model: the hand-written Ob1 port pf_ob1.c "
                    "(the [Embedded] Table 2 benchmark, object simulated on the MCU).")

@@ -663,6 +663,10 @@ def _numba_ir(cls, fn_name, job, notes):
 # loop with no call, no per-element transpose test or stride multiply.  Column-major BLAS
 # semantics, unit strides, the same summation order as c/nrt_shim.c (which keeps the linkable
 # C versions).  Characters arrive as their codes ('n' = 110, 'N' = 78).
+#: the zero of the sums below: :func:`_blas_ir` rebinds it to float32 or float64 zero per compiled body
+_ZERO = 0.0
+
+
 def _pfm_gemm(transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc):
     """C = alpha op(A) op(B) + beta C (column-major ?gemm)."""
     ta = transa != 110 and transa != 78

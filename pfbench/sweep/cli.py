@@ -14,6 +14,8 @@ from pathlib import Path
 import click
 
 from ..errors import DataError, InputError
+from ..clitypes import OUT_FILE, ChoiceList, complete_models
+from ..filters.inputs import BACKENDS
 from ..filters.methods import ESTIMATES, METHODS
 from ..options import check_known, comma_list, parse_key_values, typed
 
@@ -61,23 +63,24 @@ def _grid_file(path: str) -> dict:
 _OPTIONS = [
     click.option("--grid", "grid", type=click.Path(dir_okay=False), default=None,
                  help="YAML/TOML file with any of these options (command-line options win)."),
-    click.option("--model", default=None,
-                 help="Model, optionally with a variant: ob1, ob3:v4 (`pfbench info` lists them)."),
+    click.option("--model", default=None, shell_complete=complete_models,
+                 help="Model, optionally with a variant: ob1, ob3:v4 (`pfbench models` lists them)."),
     click.option("--param", "param", multiple=True, metavar="KEY=VALUE",
                  help="Model parameter (repeatable; JSON-typed, as `pfbench run --param`)."),
     click.option("--particles", default=None, help="N_p values, e.g. 100,200,500,1000."),
     click.option("--filters", default=None, help="N_f values (MultiPDF), e.g. 1,2,3,5,10."),
-    click.option("--method", default=None,
+    click.option("--method", type=ChoiceList(METHODS), default=None, metavar="METHOD[,METHOD...]",
                  help=f"One or a comma-separated list of: {', '.join(METHODS)} (default multipdf)."),
     click.option("--runs", type=int, default=None, help="Monte Carlo runs per configuration."),
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
-    click.option("--backend", default=None, help="numba (default), numpy or cupy (a GPU)."),
+    click.option("--backend", type=click.Choice(BACKENDS), default=None,
+                 help="numba (default), numpy or cupy (a GPU)."),
     click.option("--estimate", type=click.Choice(ESTIMATES), default=None,
                  help="Point estimate of a step: pre (default; weighted, before resampling) or post "
                       "(the resampled particles, [MultiPDF] Alg. 1-2) for the particle methods; mpf, "
                       "guided and kalman keep their own."),
     click.option("--seed", type=int, default=None, help="Root seed, an integer >= 0 (default 0)."),
-    click.option("--out", default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl; "
+    click.option("--out", **OUT_FILE, default=None, help="Store: X.parquet (journal X.parquet.journal) or X.jsonl; "
                                              "one sweep at a time may write it."),
     click.option("--workers", type=int, default=None,
                  help="Worker processes, >= 1 (default: all cores; 0 or less is an error)."),
@@ -85,6 +88,7 @@ _OPTIONS = [
     click.option("--scheduler", default=None, help="Dask scheduler address tcp://host:port."),
     click.option("--overwrite", is_flag=True, help="Start afresh even if --out holds another sweep."),
     click.option("--quiet", is_flag=True, help="No progress bar."),
+    click.option("--json", "as_json", is_flag=True, help="Print the outcome (store, tasks done, speed) as JSON."),
 ]
 
 
@@ -103,6 +107,7 @@ def _do_run(kw: dict) -> None:
     from .core import make_spec
     from .runner import run_sweep
 
+    as_json = kw.pop("as_json", False)
     grid = _grid_file(kw.pop("grid")) if kw.get("grid") else {}
     kw.pop("grid", None)
     opts = dict(grid)
@@ -139,6 +144,13 @@ def _do_run(kw: dict) -> None:
         click.echo(f"interrupted: finished tasks are saved in {journal_path(opts['out'])}; "
                    "re-run the same command to resume", err=True)
         sys.exit(130)
+    if as_json:
+        from ..io import to_json
+
+        click.echo(to_json({"store": str(rep.store), "total": rep.total, "done": rep.done_before + rep.done_now,
+                            "done_now": rep.done_now, "wall_s": rep.wall_s,
+                            "tasks_per_s": rep.tasks_per_s if rep.done_now else None}))
+        return
     click.echo(f"{rep.done_before + rep.done_now}/{rep.total} tasks in {rep.store} "
                f"({rep.done_now} new in {rep.wall_s:.1f} s, {rep.tasks_per_s:.1f} tasks/s)")
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 import os
 import re
 import signal
-import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -82,6 +81,9 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
         raise InputError(f"unknown executor {executor!r}; choose local or dask")
     if scheduler:
         executor = "dask"
+    if executor == "dask":
+        require_dask()
+    if scheduler:
         scheduler = check_scheduler(scheduler)
     if workers is None:
         workers = usable_cores()
@@ -114,10 +116,8 @@ def check_scheduler(address: str) -> str:
     address = f"{m.group(1) or 'tcp'}://{m.group(2)}:{int(m.group(3))}"
     import asyncio
 
-    try:
-        from distributed.comm import connect
-    except ImportError:  # pragma: no cover
-        raise InputError("the dask executor needs `pip install dask[distributed]`") from None
+    require_dask()
+    from distributed.comm import connect
 
     async def identity():
         comm = await connect(address, timeout=HANDSHAKE_S / 2)  # a refused port: its own message
@@ -173,10 +173,10 @@ def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, ma
     units = pending_units(spec, store)
     if max_units is not None:
         units = units[:max_units]
-    from tqdm.auto import tqdm
+    from ..progress import progress_bar
 
-    bar = tqdm(total=total, initial=before, unit="task", desc=f"{spec.get('kind', 'sweep')} {spec.get('model', '')}",
-               disable=not progress, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
+    bar = progress_bar(show=progress, total=total, initial=before, unit="task",
+                       desc=f"{spec.get('kind', 'sweep')} {spec.get('model', '')}", dynamic_ncols=True, smoothing=0.1)
     t0 = time.perf_counter()
 
     def done(recs, wall, worker):
@@ -266,11 +266,22 @@ def _run_local(spec, units, workers, done):
                 done(recs, wall, who)
 
 
+DASK_MISSING = "--executor dask needs Dask, which is not installed: pip install 'pfbench[cluster]'"
+
+
+def require_dask() -> None:
+    """Dask is the optional extra ``cluster``: without it, ``--executor dask`` is one line before any work."""
+    import importlib.util
+
+    if importlib.util.find_spec("distributed") is None:
+        raise InputError(DASK_MISSING)
+
+
 def _run_dask(spec, units, workers, scheduler, done):
     try:
         from distributed import Client, LocalCluster, as_completed
-    except ImportError:  # pragma: no cover
-        raise InputError("the dask executor needs `pip install dask[distributed]`") from None
+    except ImportError:
+        raise InputError(DASK_MISSING) from None
     cluster = None
     try:
         if scheduler:

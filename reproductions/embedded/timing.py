@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reproductions.embedded import _host as bench_host
+from . import _host as bench_host
 from pfbench.mcu import costmodel as cm
 from pfbench.models import get as get_model
 from pfbench.recipes import recipe

@@ -28,7 +28,7 @@ from pfbench.models.pmsm import Q_THETA_FILTER
 from pfbench.plants.pmsm_control.smc import step_time_us
 from pfbench.recipes import recipe
 
-from reproductions.thesis.ch2 import mse_reduction
+from .ch2 import mse_reduction
 from pfbench.plotting import OURS, label, subplots
 from pfbench.verdicts import (Z95, Outcome, Reading, all_cases, close_to, direction, not_reproducible,
                               proportion)

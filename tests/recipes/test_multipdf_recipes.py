@@ -120,7 +120,7 @@ def _wide(values):
 def test_paired_rules_pick_the_right_configurations():
     """nf_vs_bf pairs per run and averages only over N_p where every N_f exists; best_set_rule
     compares the best N_f outside the set with the best inside (catches swapped signs/columns)."""
-    from reproductions.multipdf._common import best_set_rule, nf_vs_bf
+    from pfbench.reproductions.multipdf._common import best_set_rule, nf_vs_bf
 
     runs = 5
     base = np.arange(runs, dtype=float)
@@ -140,7 +140,7 @@ def test_paired_rules_pick_the_right_configurations():
 
 
 def test_batch_means():
-    from reproductions.multipdf.distances import batch_means
+    from pfbench.reproductions.multipdf.distances import batch_means
 
     x = np.r_[np.zeros(1000), np.ones(1000), 5 * np.ones(10)]
     np.testing.assert_allclose(batch_means(x, 1000), [0.0, 1.0])  # partial batch dropped
@@ -148,7 +148,7 @@ def test_batch_means():
 
 def test_table3_reads_the_code():
     """table3 prints what the models use: change a default and the row changes with it."""
-    from reproductions.multipdf.table3 import rows
+    from pfbench.reproductions.multipdf.table3 import rows
 
     r = pd.DataFrame(rows()).set_index(["object", "parameter"])
     assert r.loc[("Ob1", "var(v)"), "ours"] == "10"
@@ -163,7 +163,7 @@ def _o(verdict):
 def test_over_noise_levels():
     """Ob5's lost noise level: scored only when every swept level gives the same verdict. Catches a
     verdict taken from our guessed level when another level says otherwise."""
-    from reproductions.multipdf._common import over_noise_levels
+    from pfbench.reproductions.multipdf._common import over_noise_levels
 
     A, U = verdicts.AGREE, verdicts.UNDECIDED
     out, reading, others = over_noise_levels([(1, _o(A)), (10, _o(A))])
@@ -176,7 +176,7 @@ def test_recipes_estimate_after_resampling_as_the_paper():
     """[MultiPDF] Algs. 1-2 take the point estimate after resampling: the recipes' sweeps and
     single runs ask for it (catches the choice dropped from the sweep spec or the filter call)."""
     import pfbench
-    from reproductions.multipdf import _common
+    from pfbench.reproductions.multipdf import _common
 
     assert _common.ESTIMATE == "post" and _common.filter_kw(pfbench.run_filter) == {"estimate": "post"}
     ctx = recipes.RecipeContext(recipe=recipes.resolve("multipdf:fig3"), options={"runs": 2})
@@ -206,7 +206,7 @@ def test_figures_label_axes_and_bands(tmp_path):
     bands (the old Figs. 3/8) and axes without units."""
     import matplotlib.pyplot as plt
 
-    from reproductions.multipdf import _common
+    from pfbench.reproductions.multipdf import _common
 
     summ = pd.DataFrame({"method": "multipdf", "n_particles": [100, 200, 100, 200], "n_filters": [1, 1, 2, 2],
                          "runs": 5, "armse_mean": [1.0, 0.9, 1.1, 0.8], "armse_lo": [0.9, 0.8, 1.0, 0.7],

@@ -70,7 +70,7 @@ def test_sweep_claim_scores_only_when_the_lost_readings_agree():
     """Catches a claim resting on a lost equation being scored when its readings disagree, and a
     reading that is not about the lost part (on_lost False) wrongly blocking the score."""
     from pfbench.verdicts import NOT_REPRODUCIBLE, holds
-    from reproductions.thesis.ch2 import sweep_claim
+    from pfbench.reproductions.thesis.ch2 import sweep_claim
 
     class Ctx:
         def __init__(self):
@@ -93,7 +93,7 @@ def test_outlier_readings_put_0_5_in_the_process_or_the_measurement(obs):
     """The process reading adds w_5 = 0.5 to x^(6) (pfbench index 5); the measurement reading adds
     v_5 = 0.5 to y_5 (index 4) and leaves the state alone. Catches the outlier in the wrong place,
     in both, or the filters' model carrying it."""
-    from reproductions.thesis.ch2 import OUTLIERS
+    from pfbench.reproductions.thesis.ch2 import OUTLIERS
 
     h = (lambda x: x) if obs == "linear" else (lambda x: x * x / 20.0)
     proc = OUTLIERS["process"][obs](outlier_step=5).simulate(10, seed=3)
@@ -111,8 +111,8 @@ def test_outlier_readings_put_0_5_in_the_process_or_the_measurement(obs):
 def test_bands_come_from_the_papers_precision():
     """Whole-percent rounding + the paper's own 95 % error at its 1000 runs; catches a band widened
     (e.g. the old fixed ±3 points) or narrowed to the rounding alone."""
-    from reproductions.thesis.ch2 import paper_band_halfwidth
-    from reproductions.thesis.pmsm_control import rate_band
+    from pfbench.reproductions.thesis.ch2 import paper_band_halfwidth
+    from pfbench.reproductions.thesis.pmsm_control import rate_band
 
     assert rate_band(0.08) == pytest.approx(0.005 + 1.959964 * math.sqrt(0.08 * 0.92 / 1000), rel=1e-6)
     assert rate_band(0.02) == pytest.approx(0.01368, abs=1e-4)
@@ -156,7 +156,7 @@ def test_prop1_is_by_construction_and_fig4_5_setup_is_a_setup_check(tmp_path):
 
 
 def test_mse_reduction_and_its_standard_error():
-    from reproductions.thesis.ch2 import mse_reduction
+    from pfbench.reproductions.thesis.ch2 import mse_reduction
 
     b = np.array([1.0, 2.0, 3.0, 4.0])
     red, se = mse_reduction(b, 0.5 * b)                       # a = R b exactly: no spread
@@ -169,7 +169,7 @@ def test_mse_reduction_and_its_standard_error():
 
 
 def test_quadratic_reading_observes_x_squared_over_20():
-    from reproductions.thesis.ch2 import ThesisExampleQuadratic
+    from pfbench.reproductions.thesis.ch2 import ThesisExampleQuadratic
 
     m = ThesisExampleQuadratic()
     p = m.params()

@@ -9,8 +9,8 @@ from pfbench import kalman
 from pfbench.plants import rtd
 from pfbench.errors import DataError, InputError
 from pfbench.verdicts import AGREE, CONSTRUCTION, DISAGREE, FINDING, NOT_REPRODUCIBLE, SETUP, Reading, close_to
-from reproductions.rtd._sweep import swept
-from reproductions.rtd.bath import NOISE_SWEEP
+from pfbench.reproductions.rtd._sweep import swept
+from pfbench.reproductions.rtd.bath import NOISE_SWEEP
 
 
 def test_identified_model_poles_and_gain():
@@ -296,7 +296,7 @@ def test_fig5_claims_count_runs_and_sweep(tmp_path):
     """The '< 1 degC after 45 s' sentence is one finding: a rate over the Monte Carlo runs of
     fig5_mc.csv, computed at every (Q, R) of fig5_sweep.csv and not reproducible because the rate's
     verdict changes with the unstated noise levels; the '8 s' sentence disagrees at every point."""
-    from reproductions.rtd.fig5 import SWEEP
+    from pfbench.reproductions.rtd.fig5 import SWEEP
 
     ctx = _run("rtd:fig5", tmp_path)
     mc = pd.read_csv(tmp_path / "rtd" / "fig5_mc.csv")
