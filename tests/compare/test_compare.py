@@ -239,3 +239,19 @@ def test_particles_adapter_runs_when_available():
     a, b = s["bootstrap-numpy"], s["particles:bootstrap"]
     se = math.hypot(a["loglik_sd"], b["loglik_sd"]) / 2.0
     assert abs(a["loglik"] - b["loglik"]) < 4.0 * se + 0.5
+
+
+def test_dask_cluster_gives_the_local_numbers(files, tmp_path):
+    """The same comparison on a Dask cluster (a LocalCluster of 2 workers, as `--executor dask`
+    without --scheduler starts) gives the local run's numbers: the grid runs on the sweep machinery
+    unchanged. Catches a contender spec or dataset seed lost on the way to a worker."""
+    pytest.importorskip("distributed")
+    args = ["--task", "ob1", "--runs", 2, "--particles", 100, "--quiet", "--json",
+            "--contender", "pfbench:bootstrap:backend=numpy",
+            "--contender", f"mine=py:{files / 'my_filter.py'}:bootstrap"]
+    local = _invoke("compare", *args, "--out", tmp_path / "local")
+    dask = _invoke("compare", *args, "--out", tmp_path / "dask", "--executor", "dask", "--workers", 2)
+    assert local.exit_code == 0 and dask.exit_code == 0, dask.output
+    a, b = (json.loads(r.stdout)["tasks"]["ob1"]["contenders"] for r in (local, dask))
+    for name in ("bootstrap-numpy", "mine"):
+        assert b[name]["runs"] == 2 and b[name]["armse"] == pytest.approx(a[name]["armse"], rel=1e-12)
