@@ -402,7 +402,7 @@ def list_cmd(as_json):
 @main.command("options")
 @click.argument("recipe_id")
 def options_cmd(recipe_id):
-    """The --option keys a recipe takes (type and help) and whether it reads --data."""
+    """The --option keys a recipe takes (type, allowed values, help) and whether it reads --data."""
     from .recipes import resolve
 
     rec = resolve(recipe_id)
@@ -411,7 +411,7 @@ def options_cmd(recipe_id):
         click.echo("  (no --option keys)")
     w = max((len(o.key) for o in rec.options), default=0)
     for o in rec.options:
-        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.help}")
+        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.help}" + (f"; {o.range_text}" if o.rule else ""))
     click.echo("  --data FILE: " + ("a log to run on instead of a simulation" if rec.reads_data
                                     else "not accepted (the recipe reads no data)"))
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from pfbench.sweep import make_spec, run_sweep, summarize_frame
 from pfbench.procs import usable_cores
+from pfbench.ranges import COUNT
 from pfbench.errors import PfbenchError
 from pfbench.sweep.store import Store, journal_path, spec_hash
 from pfbench.verdicts import NOT_REPRODUCIBLE, Outcome, Reading, same_for_every
@@ -40,8 +41,8 @@ def filter_kw(run_filter) -> dict:
 
 
 #: the --option keys that :func:`sweep` and its helpers read (declare them on every recipe using it)
-OPTIONS = {"runs": (int, "Monte Carlo runs per configuration (see the recipe's quick/full counts)"),
-           "workers": (int, "worker processes of the sweep (default: all cores)")}
+OPTIONS = {"runs": (int, "Monte Carlo runs per configuration (see the recipe's quick/full counts)", COUNT),
+           "workers": (int, "worker processes of the sweep (default: all cores)", COUNT)}
 
 
 def workers(ctx) -> int:

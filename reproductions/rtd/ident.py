@@ -8,6 +8,7 @@ import numpy as np
 
 from pfbench import plotting
 from pfbench.plants import rtd
+from pfbench.ranges import POSITIVE
 from pfbench.recipes import recipe
 from pfbench.verdicts import SETUP, holds, not_reproducible
 
@@ -39,7 +40,7 @@ def _is_two_real_lags(y) -> bool:
 
 
 @recipe("rtd:fig2", title="Identified model: step response to the 38 degC input (Fig. 2, model only)",
-        quick_cost="~2 s", full_cost="~2 s", options={"t_end": (float, "simulated time, s (default 60)")})
+        quick_cost="~2 s", full_cost="~2 s", options={"t_end": (float, "simulated time, s (default 60)", POSITIVE)})
 def fig2(ctx):
     import pandas as pd
 
@@ -133,7 +134,7 @@ def fig3(ctx):
 
 
 @recipe("rtd:fig4", title="Model step responses of the identified models (Fig. 4, model only)",
-        quick_cost="~2 s", full_cost="~2 s", options={"t_end": (float, "simulated time, s (default 60)")})
+        quick_cost="~2 s", full_cost="~2 s", options={"t_end": (float, "simulated time, s (default 60)", POSITIVE)})
 def fig4(ctx):
     import pandas as pd
 
