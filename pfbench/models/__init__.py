@@ -258,6 +258,18 @@ def parse_spec(spec: str, params: dict | None = None) -> tuple[str, dict]:
     return name, params
 
 
+def format_spec(name: str, params: dict | None = None) -> str:
+    """The model as a user would name it, the inverse of :func:`parse_spec`: ``("ob3",
+    {"version": 4})`` -> ``"ob3:v4"``; other parameters follow as ``--param`` text, sorted
+    (``"ob4 shared_noise=true"``), so that a table of results says which model it holds."""
+    params = dict(params or {})
+    version = params.pop("version", None)
+    text = f"{name}:v{version}" if isinstance(version, int) and not isinstance(version, bool) else name
+    if version is not None and text == name:
+        params["version"] = version
+    return " ".join([text] + [f"{k}={json_text(v)}" for k, v in sorted(params.items())])
+
+
 def get_spec(spec: str, **params) -> StateSpaceModel:
     """Instantiate a model spec (``"ob1"``, ``"ob3:v4"``) with extra keyword parameters."""
     name, params = parse_spec(spec, params)
@@ -265,4 +277,4 @@ def get_spec(spec: str, **params) -> StateSpaceModel:
 
 
 __all__ = ["StateSpaceModel", "Trajectory", "gaussian_loglik_diag", "register", "names", "get",
-           "get_spec", "parse_spec", "model_class", "load_files", "loaded_files"]
+           "get_spec", "parse_spec", "format_spec", "model_class", "load_files", "loaded_files"]

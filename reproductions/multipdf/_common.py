@@ -108,11 +108,16 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
     st = Store.read(out)
     frame = st.frame()
     summ = summarize_frame(frame, spec)
+    dropped = int(summ["dropped"].sum())
+    if dropped:
+        ctx.note(f"{name}: {dropped} run(s) with a NaN or infinite aRMSE are left out of the means "
+                 "and intervals (column dropped of the summary).")
     ctx.outputs.append(str(out))
     ctx.extra.setdefault("sweeps", {})[name] = {
         "tasks": rep.total, "new_tasks": rep.done_now, "wall_s": round(wall, 2),
         "tasks_per_s": round(rep.tasks_per_s, 2) if rep.done_now else None,
-        "worker_seconds": round(float(sum(c["wall_s"] for c in st.chunks)), 2), "runs": runs}
+        "worker_seconds": round(float(sum(c["wall_s"] for c in st.chunks)), 2), "runs": runs,
+        "dropped": dropped}
     return summ, spec, wall, st
 
 
