@@ -410,8 +410,9 @@ def options_cmd(recipe_id):
     if not rec.options:
         click.echo("  (no --option keys)")
     w = max((len(o.key) for o in rec.options), default=0)
+    rw = max((len(o.range_text) for o in rec.options), default=0)
     for o in rec.options:
-        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.help}" + (f"; {o.range_text}" if o.rule else ""))
+        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.range_text.ljust(rw)}  {o.help}")
     click.echo("  --data FILE: " + ("a log to run on instead of a simulation" if rec.reads_data
                                     else "not accepted (the recipe reads no data)"))
 

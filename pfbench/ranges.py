@@ -131,6 +131,8 @@ class ListOf:
         return f"{lo} item{'s' if lo != 1 else ''}" if lo == hi else f"{lo} to {hi} items"
 
     def __str__(self) -> str:
+        """E.g. ``ints >= 1`` or ``ints >= 0, 2 items`` (the item count when it is not 1 or more)."""
         kind = "texts" if self.item is str else f"{self.item.__name__}s"
-        each = f", each {self.rule}" if self.rule is not None else ""
-        return f"comma-separated {kind}{each}; {self._count()}"
+        each = f" {self.rule}" if self.rule is not None else ""
+        many = "" if (self.min_items, self.max_items) == (1, None) else f", {self._count()}"
+        return f"{kind}{each}{many}"
