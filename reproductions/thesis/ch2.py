@@ -18,7 +18,8 @@ import pfbench
 from pfbench.models import get
 from pfbench.models.base import LOG_2PI
 from pfbench.models.thesis_example import ThesisExample
-from pfbench.ranges import COUNT, ListOf, OneOf, at_least
+from pfbench.errors import InputError
+from pfbench.ranges import COUNT, ListOf, OneOf, above, at_least
 from pfbench.recipes import recipe
 from pfbench.plotting import OTHER, OURS, PAPER, label, paper_value, subplots
 from pfbench.verdicts import Z95, CONSTRUCTION, Reading, close_to, direction, holds, in_band, same_for_every
@@ -114,13 +115,15 @@ def fig2_2(ctx):
         quick_cost="~10 s", full_cost="~1 min",
         options={"particles": (int, "particles (default 50)", COUNT),
                  "steps": (int, "time steps (default 50)", COUNT),
-                 "threshold": (float, "resample when N_eff < this many particles (default 25)",
-                               at_least(0.0)),
+                 "threshold": (float, "resample when N_eff < this many particles (default 25; at "
+                                      "most particles)", above(0.0)),
                  "runs": (int, "Monte Carlo runs for the claim (quick 100, full 1000; run 0 is plotted)",
                           COUNT)})
 def fig2_3(ctx):
     n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
     thr = ctx.option("threshold", 25.0, float)
+    if thr > n:
+        raise InputError(f"--option threshold={thr:g}: must be at most particles ({n})")
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     model = get("thesis_example")
     tr = model.simulate(M, seed=[ctx.seed, 0])

@@ -109,3 +109,12 @@ def test_declaration_without_a_matching_rule_is_a_bug():
         recipes._declare({"n": (int, "count", OneOf("a"))})
     with pytest.raises(ValueError):
         recipes._declare({"xs": (list, "counts", at_least(1))})
+
+
+def test_a_bound_set_by_another_option_is_one_line(tmp_path):
+    """thesis:fig2.3 threshold is a particle count, at most particles (was: a ValueError deep in
+    the filter for 0, and for more than particles)."""
+    r = CliRunner().invoke(main, ["reproduce", "thesis:fig2.3", "--option", "particles=10", "--option",
+                                  "threshold=11", "--out", str(tmp_path), "--quiet"])
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.exit_code == 2 and lines == ["error: --option threshold=11: must be at most particles (10)"]
