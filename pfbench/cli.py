@@ -407,7 +407,7 @@ def list_cmd(as_json):
 @click.argument("recipe_id", shell_complete=complete_recipes)
 @click.option("--json", "as_json", is_flag=True, help="Print the recipe's options as one JSON object.")
 def options_cmd(recipe_id, as_json):
-    """The --option keys a recipe takes (type and help) and whether it reads --data."""
+    """The --option keys a recipe takes (type, allowed values, help) and whether it reads --data."""
     from .recipes import resolve
 
     rec = resolve(recipe_id)
@@ -421,8 +421,9 @@ def options_cmd(recipe_id, as_json):
     if not rec.options:
         click.echo("  (no --option keys)")
     w = max((len(o.key) for o in rec.options), default=0)
+    rw = max((len(o.range_text) for o in rec.options), default=0)
     for o in rec.options:
-        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.help}")
+        click.echo(f"  {o.key.ljust(w)}  {o.type_name:<5}  {o.range_text.ljust(rw)}  {o.help}")
     click.echo("  --data FILE: " + ("a log to run on instead of a simulation" if rec.reads_data
                                     else "not accepted (the recipe reads no data)"))
 

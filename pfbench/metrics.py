@@ -1,6 +1,8 @@
 """Estimation-quality metrics ([MultiPDF] eqs. 11-14)."""
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .errors import InputError
@@ -40,13 +42,24 @@ def distance(est, truth) -> np.ndarray:
     return np.sqrt(np.sum((est - truth) ** 2, axis=1))
 
 
-def mean_interval(values, z: float = 2.0) -> tuple[float, float, float]:
-    """Mean and the paper's band mean +- z sigma / sqrt(m) ([MultiPDF] §5; z = 2 for ~95 %)."""
+class Interval(NamedTuple):
+    """A mean, its band [lo, hi], and how many values were left out as NaN or infinite."""
+
+    mean: float
+    lo: float
+    hi: float
+    dropped: int
+
+
+def mean_interval(values, z: float = 2.0) -> Interval:
+    """Mean and the paper's band mean +- z sigma / sqrt(m) ([MultiPDF] §5; z = 2 for ~95 %) over
+    the finite values; ``dropped`` counts the others (a diverged run), so that a caller can say
+    that the mean is over fewer runs than were made, never hide it."""
     v = np.asarray(values, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    m = v.size
+    finite = v[np.isfinite(v)]
+    dropped, m = int(v.size - finite.size), finite.size
     if m == 0:
-        return float("nan"), float("nan"), float("nan")
-    mu = float(v.mean())
-    half = z * float(v.std(ddof=1)) / np.sqrt(m) if m > 1 else float("nan")
-    return mu, mu - half, mu + half
+        return Interval(float("nan"), float("nan"), float("nan"), dropped)
+    mu = float(finite.mean())
+    half = z * float(finite.std(ddof=1)) / np.sqrt(m) if m > 1 else float("nan")
+    return Interval(mu, mu - half, mu + half, dropped)

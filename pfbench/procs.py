@@ -123,12 +123,17 @@ def free_cores() -> int:
     return max(1, usable_cores() - _runnable_elsewhere())
 
 
-def _init_worker(parent_pid: int, shared: bool, initializer: Callable | None, initargs: tuple) -> None:
+def _init_worker(parent_pid: int, shared: bool, model_files: list, initializer: Callable | None,
+                 initargs: tuple) -> None:
     die_with_parent(parent_pid)
     if shared:  # the pool's workers already use the cores: no compile helpers on top of them
         from .backends import compile_helper
 
         compile_helper.disable()
+    if model_files:  # a model name must mean the same class in every process
+        from .models import load_files
+
+        load_files(model_files)
     if initializer is not None:
         initializer(*initargs)
 
@@ -141,12 +146,15 @@ def process_pool(max_workers: int, *, mp_context=None, initializer: Callable | N
     arranged to die with its parent. Create the pool from the main thread: the parent-death
     signal fires when the *thread* that started the worker ends. The workers of a pool of two or
     more start no compile helpers (:mod:`pfbench.backends.compile_helper`): the pool already
-    spreads over the cores.
+    spreads over the cores. Each worker loads the user model files this process has loaded
+    (:func:`pfbench.models.loaded_files`), after the built-ins, as this process did.
     """
     from concurrent.futures import ProcessPoolExecutor
 
+    from .models import loaded_files
+
     return ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context, initializer=_init_worker,
-                               initargs=(os.getpid(), max_workers > 1, initializer, initargs))
+                               initargs=(os.getpid(), max_workers > 1, loaded_files(), initializer, initargs))
 
 
 @contextlib.contextmanager

@@ -16,7 +16,7 @@ Example::
 
     @recipe("embedded:fig5", aliases=("fig5",), title="Platform timing",
             quick_cost="~1 min", full_cost="~5 min",
-            options={"repeats": (int, "timed repetitions (quick 5, full 21)")})
+            options={"repeats": (int, "timed repetitions (quick 5, full 21)", COUNT)})
     def fig5(ctx):
         reps = ctx.option("repeats", 21 if ctx.full else 5)
         df = ...
@@ -25,10 +25,13 @@ Example::
 
 Options
 -------
-A recipe declares every ``--option KEY=VALUE`` it reads in ``@recipe(options=...)``: key -> one-line
-help, or key -> (type, help) with type int, float, bool or str. Before a recipe runs, an unknown
-key is an :class:`~pfbench.errors.InputError` listing the valid ones and a declared type is
-checked (with :func:`pfbench.options.typed`: ``runs=2.7`` is not an int). Reading an undeclared
+A recipe declares every ``--option KEY=VALUE`` it reads in ``@recipe(options=...)``: key ->
+(type, help, rule) with type int, float, bool, str or list and a rule of :mod:`pfbench.ranges`
+(``(float, "variance", POSITIVE)``, ``(str, "model", OneOf("eq52", "eq54"))``,
+``(list, "particle counts", ListOf(int, COUNT))``); ``pfbench options ID`` shows the table. Before a
+recipe runs, an unknown key is an :class:`~pfbench.errors.InputError` listing the valid ones, a
+declared type is checked (with :func:`pfbench.options.typed`: ``runs=2.7`` is not an int) and so is
+the rule (``Q=-1`` for a variance is one line, before any work). Reading an undeclared
 key (``ctx.option``, ``ctx.options[...]``, ``in``, ``.get``) is a bug in the recipe and raises
 ``RuntimeError``, so the declarations cannot rot. A recipe that reads ``--data FILE`` says
 ``reads_data=True``; ``--data`` for any other recipe is an InputError.
@@ -68,6 +71,7 @@ from .errors import InputError, PfbenchError  # noqa: F401 - PfbenchError re-exp
 from .options import check_known, did_you_mean, typed
 from .procs import exclusive_lock, lock_path
 from .provenance import provenance
+from .ranges import ListOf, Range
 
 PAPERS = {
     "embedded": "Particle filter on an STM32F4 ([Embedded])",
@@ -80,29 +84,52 @@ DEFAULT_PAPER = "embedded"
 
 @dataclass(frozen=True)
 class RecipeOption:
-    """One declared recipe option: ``type`` is int, float, bool, str or None (any parsed value)."""
+    """One declared recipe option: ``type`` is int, float, bool, str, list or None (any parsed
+    value); ``rule`` (:mod:`pfbench.ranges`: a Range, OneOf or ListOf) the values it allows."""
 
     key: str
     help: str
     type: type | None = None
+    rule: Any = None
 
     @property
     def type_name(self) -> str:
         return self.type.__name__ if self.type is not None else "any"
 
+    @property
+    def range_text(self) -> str:
+        """What the rule allows, e.g. ``> 0`` or ``one of eq52, eq54`` ("" without a rule)."""
+        return "" if self.rule is None else str(self.rule)
+
+    def check(self, value, kind=None):
+        """``value`` typed (as ``kind``, default the declared type; see :func:`typed`) and
+        checked against the rule: an InputError ``--option KEY=VALUE: ...`` otherwise."""
+        what = f"--option {self.key}={_text(value)}"
+        if isinstance(self.rule, ListOf):
+            return self.rule.check(value, what)
+        value = typed(value, kind or self.type, what)
+        return value if self.rule is None else self.rule.check(value, what)
+
     def as_dict(self) -> dict:
-        return {"help": self.help, "type": self.type_name}
+        return {"help": self.help, "type": self.type_name, "range": self.range_text}
 
 
 def _declare(options) -> tuple[RecipeOption, ...]:
+    """``options`` of :func:`recipe` as RecipeOptions: key -> "help", (type, "help") or
+    (type, "help", rule); a list option is (list, "help", ListOf(...)). Numbers need a Range."""
     out = []
     for key, spec in dict(options or {}).items():
-        kind, text = spec if isinstance(spec, tuple) else (None, spec)
+        kind, text, rule = (tuple(spec) + (None,))[:3] if isinstance(spec, tuple) else (None, spec, None)
         if not str(key).isidentifier() or not isinstance(text, str) or not text.strip():
-            raise ValueError(f"recipe option {key!r}: declare it as key -> 'help' or (type, 'help')")
-        if kind not in (None, int, float, bool, str):
-            raise ValueError(f"recipe option {key!r}: type must be int, float, bool, str or None")
-        out.append(RecipeOption(str(key), " ".join(text.split()), kind))
+            raise ValueError(f"recipe option {key!r}: declare it as key -> 'help' or (type, 'help', rule)")
+        if kind not in (None, int, float, bool, str, list):
+            raise ValueError(f"recipe option {key!r}: type must be int, float, bool, str, list or None")
+        if (kind is list) != isinstance(rule, ListOf) or (kind in (int, float) and rule is not None
+                                                           and not isinstance(rule, Range)):
+            raise ValueError(f"recipe option {key!r}: a list needs a ListOf rule, a number a Range")
+        if rule is not None and not callable(getattr(rule, "check", None)):
+            raise ValueError(f"recipe option {key!r}: the rule must be a Range, OneOf or ListOf")
+        out.append(RecipeOption(str(key), " ".join(text.split()), kind, rule))
     return tuple(out)
 
 
@@ -131,10 +158,11 @@ class Recipe:
                            f"@recipe(options=...) (declared: {', '.join(self.option_keys) or 'none'})")
 
     def check_options(self, options: dict) -> dict:
-        """``options`` validated against the declarations: unknown keys and badly typed values
-        are InputErrors; returns the options with declared types applied."""
+        """``options`` validated against the declarations: unknown keys, badly typed values and
+        values outside the declared rule are InputErrors; returns the options with declared types
+        applied (a list option as a list)."""
         check_known(options, self.option_keys, f"an option of recipe {self.id}")
-        return {k: typed(v, self.declared(k).type, f"--option {k}={_text(v)}") for k, v in options.items()}
+        return {k: self.declared(k).check(v) for k, v in options.items()}
 
     @property
     def paper(self) -> str:
@@ -159,8 +187,9 @@ def recipe(id: str, *, title: str, aliases: Iterable[str] = (), quick_cost: str 
            reads_data: bool = False):
     """Register a recipe function under ``id`` ("paper:name").
 
-    ``options``: every ``--option`` key the recipe reads, key -> "one-line help" or
-    key -> (type, "help"); ``reads_data``: the recipe accepts ``--data FILE``.
+    ``options``: every ``--option`` key the recipe reads, key -> (type, "help", rule) (module
+    docstring; key -> "help" or (type, "help") declares no rule, for throw-away recipes);
+    ``reads_data``: the recipe accepts ``--data FILE``.
     """
     if ":" not in id or id.split(":", 1)[0] not in PAPERS:
         raise ValueError(f"recipe id must be '<paper>:<name>' with paper in {sorted(PAPERS)}: {id!r}")
@@ -351,14 +380,13 @@ class RecipeContext:
 
         The value is checked with :func:`pfbench.options.typed` against ``cast`` (default: the
         declared type, else the type of ``default``): ``runs=2.7`` for an int is an InputError,
-        never 2. ``key`` must be declared in ``@recipe(options=...)`` (RuntimeError otherwise).
+        never 2; then against the declared rule (a list option comes back as a list). ``key``
+        must be declared in ``@recipe(options=...)`` (RuntimeError otherwise).
         """
         decl = self.recipe.declared(key)
         if key not in self.options:
             return default
-        value = self.options[key]
-        kind = cast or decl.type or (type(default) if default is not None else None)
-        return typed(value, kind, f"--option {key}={_text(value)}")
+        return decl.check(self.options[key], cast or decl.type or (type(default) if default is not None else None))
 
     # ----- outputs -------------------------------------------------------------------
     # Each writer returns the path the file has now (in the staging directory while the recipe

@@ -13,6 +13,13 @@ Models of the user live in their own ``.py`` files (a class decorated by :func:`
 the README): :func:`load_files` imports them (``pfbench --models my_model.py ...`` on the command
 line, or the environment variable ``PFBENCH_MODELS``: paths separated by ``os.pathsep``), after
 which their names work everywhere a registered name does.
+
+Registry rules, the same in every process, so that a name means one class everywhere: the
+built-in models always load first; a user file that registers a name already taken (by a
+built-in or by another file) is an :class:`~pfbench.errors.InputError` naming both files, and
+registers nothing; and the workers of :func:`pfbench.procs.process_pool` (sweeps) load exactly
+the files their parent loaded (:func:`loaded_files`), whether named by ``--models``,
+``PFBENCH_MODELS`` or :func:`load_files`.
 """
 from __future__ import annotations
 
@@ -31,15 +38,31 @@ from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 _REGISTRY: dict[str, type[StateSpaceModel]] = {}
 _LOADED = False
 _FILES: dict[str, str] = {}  # resolved path of a loaded user model file -> its module name
+_IMPORTING: list[str] = []   # the user model file being imported now (see register)
 MODELS_ENV = "PFBENCH_MODELS"
 
 
+def source_file(cls) -> str:
+    """The file that defines model class ``cls`` (for messages)."""
+    try:
+        return inspect.getfile(cls)
+    except (TypeError, OSError):
+        return cls.__module__
+
+
 def register(name: str):
-    """Class decorator: register a :class:`StateSpaceModel` subclass under ``name``."""
+    """Class decorator: register a :class:`StateSpaceModel` subclass under ``name``.
+
+    While a user model file is imported (:func:`load_files`), a name already registered by a
+    built-in or another file is an InputError naming both files."""
 
     def deco(cls):
         if not (isinstance(cls, type) and issubclass(cls, StateSpaceModel)):
             raise TypeError("register() expects a StateSpaceModel subclass")  # a bug in the model file
+        taken = _REGISTRY.get(name)
+        if _IMPORTING and taken is not None and taken is not cls:
+            raise InputError(f"model file {_IMPORTING[-1]!r} registers the name {name!r}, which "
+                             f"{source_file(taken)} already registers: give the model another name")
         cls.name = name
         _REGISTRY[name] = cls
         return cls
@@ -48,6 +71,7 @@ def register(name: str):
 
 
 def _load_all() -> None:
+    """The built-in models, then the files of ``PFBENCH_MODELS`` (once per process)."""
     global _LOADED
     if _LOADED:
         return
@@ -63,10 +87,13 @@ def load_files(paths) -> list[str]:
     """Import user model files (``.py``) so the models they :func:`register` can be named.
 
     Each file becomes a module of its own (imported once per process, under a name derived from
-    its path, so its classes can be found again by the MCU compiler's worker process). Returns
-    the names registered by the files. A missing file or one that fails to import is an
-    :class:`~pfbench.errors.InputError` naming the file and the first line of the reason.
+    its path, so its classes can be found again by the MCU compiler's worker process), after the
+    built-in models. Returns the names registered by the files. A missing file, one that fails
+    to import, or one that registers a name already taken is an
+    :class:`~pfbench.errors.InputError` naming the file and the first line of the reason; the
+    registry is then as it was before that file.
     """
+    _load_all()
     added = []
     for raw in paths:
         path = Path(raw).expanduser()
@@ -75,17 +102,30 @@ def load_files(paths) -> list[str]:
         key = str(path.resolve())
         if key in _FILES:
             continue
-        before = set(_REGISTRY)
+        before = dict(_REGISTRY)
         name = f"pfbench_user_models.m{len(_FILES)}_{path.stem}"
+        _IMPORTING.append(key)
         try:
             import_path(name, key)
         except Exception as exc:  # noqa: BLE001 - the user's code: report it in one line
+            _REGISTRY.clear()
+            _REGISTRY.update(before)
+            if isinstance(exc, InputError):
+                raise
             first = (str(exc).strip().splitlines() or [""])[0]
             raise InputError(f"model file {str(raw)!r} failed to import: "
                              f"{type(exc).__name__}: {first}") from None
+        finally:
+            _IMPORTING.pop()
         _FILES[key] = name
-        added += sorted(set(_REGISTRY) - before)
+        added += sorted(set(_REGISTRY) - set(before))
     return added
+
+
+def loaded_files() -> list[str]:
+    """The user model files this process has loaded, in order (resolved paths): what
+    :func:`pfbench.procs.process_pool` makes every worker load too."""
+    return list(_FILES)
 
 
 def import_path(name: str, path: str):
@@ -218,6 +258,18 @@ def parse_spec(spec: str, params: dict | None = None) -> tuple[str, dict]:
     return name, params
 
 
+def format_spec(name: str, params: dict | None = None) -> str:
+    """The model as a user would name it, the inverse of :func:`parse_spec`: ``("ob3",
+    {"version": 4})`` -> ``"ob3:v4"``; other parameters follow as ``--param`` text, sorted
+    (``"ob4 shared_noise=true"``), so that a table of results says which model it holds."""
+    params = dict(params or {})
+    version = params.pop("version", None)
+    text = f"{name}:v{version}" if isinstance(version, int) and not isinstance(version, bool) else name
+    if version is not None and text == name:
+        params["version"] = version
+    return " ".join([text] + [f"{k}={json_text(v)}" for k, v in sorted(params.items())])
+
+
 def get_spec(spec: str, **params) -> StateSpaceModel:
     """Instantiate a model spec (``"ob1"``, ``"ob3:v4"``) with extra keyword parameters."""
     name, params = parse_spec(spec, params)
@@ -225,4 +277,4 @@ def get_spec(spec: str, **params) -> StateSpaceModel:
 
 
 __all__ = ["StateSpaceModel", "Trajectory", "gaussian_loglik_diag", "register", "names", "get",
-           "get_spec", "parse_spec", "model_class", "load_files"]
+           "get_spec", "parse_spec", "format_spec", "model_class", "load_files", "loaded_files"]

@@ -14,6 +14,7 @@ Every problem raises :class:`pfbench.errors.DataError` with one line naming the 
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 
@@ -35,51 +36,62 @@ def _required(model: StateSpaceModel | None) -> tuple[str, ...]:
     return ("time_s",) + ys + tuple(us)
 
 
+def _text(path: Path) -> str:
+    """The log's text: UTF-8 (a leading byte-order mark, as spreadsheet programs write, is
+    dropped); any other encoding is a DataError naming the file, the line and the byte."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read log: {exc.strerror or exc}") from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise DataError(f"{path}:{line}: not UTF-8 text (byte 0x{raw[exc.start]:02x}); "
+                        "save the log as UTF-8 CSV") from None
+
+
 def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray]:
     """Read and validate a log; returns {column: float64 array} for every column in the header.
 
-    Raises DataError (one line, naming the line) for a missing file or column, an empty log,
-    a short row, a non-numeric or non-finite value, non-increasing time or a gap in time.
+    Raises DataError (one line, naming the line) for a missing file or column, text that is not
+    UTF-8, an empty log, a short row, a non-numeric or non-finite value, non-increasing time or a
+    gap in time.
     """
     path = Path(path)
-    try:
-        fh = open(path, newline="", encoding="utf-8")
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read log: {exc.strerror or exc}") from None
-    with fh:
-        reader = csv.reader(fh)
-        header = None
-        for row in reader:
-            if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#"):
-                header = [c.strip() for c in row]
-                break
-        if header is None:
-            raise DataError(f"{path}: empty log (no header line)")
-        hline = reader.line_num
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise DataError(f"{path}:{hline}: missing column(s) {', '.join(missing)} in header "
-                            f"(have: {', '.join(header)})")
-        data: list[list[float]] = []
-        lines: list[int] = []
-        for row in reader:
-            if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
-                continue
-            line = reader.line_num
-            if len(row) != len(header):
-                raise DataError(f"{path}:{line}: expected {len(header)} values, got {len(row)}")
-            vals = []
-            for name, cell in zip(header, row):
-                try:
-                    v = float(cell)
-                except ValueError:
-                    raise DataError(f"{path}:{line}: non-numeric value {cell.strip()!r} in column "
-                                    f"{name!r}") from None
-                if not math.isfinite(v):
-                    raise DataError(f"{path}:{line}: non-finite value {cell.strip()!r} in column {name!r}")
-                vals.append(v)
-            data.append(vals)
-            lines.append(line)
+    reader = csv.reader(io.StringIO(_text(path), newline=""))
+    header = None
+    for row in reader:
+        if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#"):
+            header = [c.strip() for c in row]
+            break
+    if header is None:
+        raise DataError(f"{path}: empty log (no header line)")
+    hline = reader.line_num
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise DataError(f"{path}:{hline}: missing column(s) {', '.join(missing)} in header "
+                        f"(have: {', '.join(header)})")
+    data: list[list[float]] = []
+    lines: list[int] = []
+    for row in reader:
+        if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+            continue
+        line = reader.line_num
+        if len(row) != len(header):
+            raise DataError(f"{path}:{line}: expected {len(header)} values, got {len(row)}")
+        vals = []
+        for name, cell in zip(header, row):
+            try:
+                v = float(cell)
+            except ValueError:
+                raise DataError(f"{path}:{line}: non-numeric value {cell.strip()!r} in column "
+                                f"{name!r}") from None
+            if not math.isfinite(v):
+                raise DataError(f"{path}:{line}: non-finite value {cell.strip()!r} in column {name!r}")
+            vals.append(v)
+        data.append(vals)
+        lines.append(line)
     if not data:
         raise DataError(f"{path}: log has a header but no data rows")
     arr = np.array(data, dtype=np.float64)

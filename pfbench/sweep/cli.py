@@ -183,6 +183,7 @@ def summarize_cmd(store, as_json, plot):
     """Per configuration: runs, aRMSE mean and 95 % interval (mean +- 2 sigma/sqrt(m))."""
     from .. import io
     from .store import load_frame
+    from .core import model_label
     from .summary import plot_summary, summarize_frame, throughput
 
     frame, spec, chunks = load_frame(store)
@@ -196,7 +197,10 @@ def summarize_cmd(store, as_json, plot):
         click.echo(summ.to_csv(index=False), nl=False)
     click.echo(f"# {tp['tasks']} tasks, {tp['tasks_per_worker_s']:.1f} runs/s per worker "
                f"({tp['worker_seconds']:.1f} worker-seconds)", err=True)
+    dropped = int(summ["dropped"].sum()) if not summ.empty else 0
+    if dropped:
+        click.echo(f"# warning: {dropped} run(s) with a NaN or infinite aRMSE are left out of the "
+                   "means and intervals (column dropped)", err=True)
     if plot and not summ.empty:
-        title = spec["model"] + "".join(f" {k}={v}" for k, v in spec.get("params", {}).items())
-        path = io.write_figure(str(store) + ".summary.png", plot_summary(summ, title))
+        path = io.write_figure(str(store) + ".summary.png", plot_summary(summ, model_label(spec)))
         click.echo(f"# plot: {path}", err=True)

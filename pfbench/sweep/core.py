@@ -143,6 +143,15 @@ def estimate_for(spec: dict, method: str) -> str:
     return estimate_of(spec) if Method.parse(method).family == "particle" else "pre"
 
 
+def model_label(spec: dict) -> str:
+    """The full model spec of a sweep as a user names it (``ob3:v4``, ``ob4 shared_noise=true``):
+    the spec keeps name and parameters apart, and a table showing only the name would say ``ob3``
+    for every version."""
+    from ..models import format_spec
+
+    return format_spec(spec["model"], spec.get("params"))
+
+
 def code_fingerprint(model: str) -> str:
     """Hash of the sources that determine a task's numbers (model, engine, MPF, this file)."""
     import inspect

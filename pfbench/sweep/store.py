@@ -187,17 +187,19 @@ class Store:
 
     # ----- views -----------------------------------------------------------------------
     def frame(self) -> pd.DataFrame:
-        """One row per finished task, sorted by (config, run); ``estimate`` is the one the task ran
-        with (:func:`~pfbench.sweep.core.estimate_for`: ``pre`` for a store written before the
+        """One row per finished task, sorted by (config, run); ``model`` is the full model spec
+        (:func:`~pfbench.sweep.core.model_label`, e.g. ``ob3:v4``), ``estimate`` the one the task
+        ran with (:func:`~pfbench.sweep.core.estimate_for`: ``pre`` for a store written before the
         option existed)."""
-        from .core import estimate_for
+        from .core import estimate_for, model_label
 
         cols = ["config", "run", "method", "n_particles", "n_filters", "armse", "elapsed_s"]
         if not self.records:
-            return pd.DataFrame(columns=cols[:5] + ["estimate"] + cols[5:])
+            return pd.DataFrame(columns=["model"] + cols[:5] + ["estimate"] + cols[5:])
+        label = model_label(self.spec)
         rows = []
         for r in self.records.values():
-            row = {k: r[k] for k in cols[:5]}
+            row = {"model": label, **{k: r[k] for k in cols[:5]}}
             row["estimate"] = estimate_for(self.spec, r["method"])
             row.update({k: r[k] for k in cols[5:]})
             for k in ("loglik", "seed", "seed_key"):  # older stores lack them
@@ -227,10 +229,14 @@ def load_frame(path) -> tuple[pd.DataFrame, dict, list]:
             raise DataError(f"{path} is not a pfbench sweep store (no sweep metadata)")
         info = json.loads(meta)
         frame = table.to_pandas()
+        if "model" not in frame.columns:  # exported before rows carried the model spec
+            from .core import model_label
+
+            frame.insert(0, "model", model_label(info["spec"]))
         if "estimate" not in frame.columns:  # exported before the option existed
             from .core import estimate_for
 
-            frame.insert(5, "estimate", [estimate_for(info["spec"], m) for m in frame["method"]])
+            frame.insert(6, "estimate", [estimate_for(info["spec"], m) for m in frame["method"]])
         return frame, info["spec"], info.get("chunks", [])
     st = Store.read(path)
     return st.frame(), st.spec, st.chunks

@@ -21,21 +21,23 @@ def _order(method: str) -> int:
 
 def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFrame:
     """Per (method, N_p, N_f): runs, aRMSE mean and the paper's 95 % interval
-    mean +- 2 sigma / sqrt(m) ([MultiPDF] §5), and filter runs per second per core; ``estimate``
-    is the one the configuration ran with (:func:`~pfbench.sweep.core.estimate_for`; ``pre``
-    without a spec or for an older store)."""
-    from .core import estimate_for
+    mean +- 2 sigma / sqrt(m) ([MultiPDF] §5) over the runs with a finite aRMSE (``dropped``: how
+    many were not, e.g. a diverged filter), and filter runs per second per core; ``model`` is the
+    full model spec (:func:`~pfbench.sweep.core.model_label`: ``ob3:v4``, not ``ob3``);
+    ``estimate`` is the one the configuration ran with (:func:`~pfbench.sweep.core.estimate_for`;
+    ``pre`` without a spec or for an older store)."""
+    from .core import estimate_for, model_label
 
     rows = []
     if frame.empty:
-        return pd.DataFrame(columns=["method", "n_particles", "n_filters", "estimate", "runs",
-                                     "armse_mean", "armse_lo", "armse_hi", "runs_per_s"])
+        return pd.DataFrame(columns=["model", "method", "n_particles", "n_filters", "estimate", "runs",
+                                     "dropped", "armse_mean", "armse_lo", "armse_hi", "runs_per_s"])
     for (m, n_p, n_f), g in frame.groupby(["method", "n_particles", "n_filters"], sort=True):
-        mu, lo, hi = mean_interval(g["armse"].to_numpy())
+        iv = mean_interval(g["armse"].to_numpy())
         el = float(g["elapsed_s"].sum())
-        rows.append({"model": spec["model"] if spec else "", "method": m, "n_particles": int(n_p),
+        rows.append({"model": model_label(spec) if spec else "", "method": m, "n_particles": int(n_p),
                      "n_filters": int(n_f), "estimate": estimate_for(spec or {}, m), "runs": int(len(g)),
-                     "armse_mean": mu, "armse_lo": lo, "armse_hi": hi,
+                     "dropped": iv.dropped, "armse_mean": iv.mean, "armse_lo": iv.lo, "armse_hi": iv.hi,
                      "runs_per_s": len(g) / el if el > 0 else float("nan")})
     out = pd.DataFrame(rows)
     out["_o"] = out["method"].map(_order)

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from pfbench.plants import chamber
+from pfbench.ranges import COUNT
 from pfbench.plants.datalog import read_log
 from pfbench.filters import run_filter
 from pfbench.models import get as get_model
@@ -44,7 +45,7 @@ TABLE_A2 = {100: "3-1", 500: "2-1", 1000: "-1"}
 
 
 #: the --option keys every chamber recipe reads (all of them also take --data log.csv)
-OPTIONS = {"pf_seeds": (int, "PF seeds averaged per experiment (quick 3, full 20)")}
+OPTIONS = {"pf_seeds": (int, "PF seeds averaged per experiment (quick 3, full 20)", COUNT)}
 
 
 def _n_seeds(ctx) -> int:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from pfbench.ranges import at_least
 from pfbench.recipes import recipe
 from pfbench import plotting
 from pfbench.verdicts import close_to, holds, not_reproducible
@@ -17,10 +18,12 @@ from pfbench.verdicts import close_to, holds, not_reproducible
 FULL_CONFIGS = {"float": ((20, 100), (40, 100), (20, 200), (40, 200)),
                 "double": ((8, 50), (16, 50), (8, 100), (16, 100))}
 
+SRAND_SEED = at_least(0, 2 ** 32 - 1)   # an unsigned int of the C harness
+
 
 @recipe("embedded:mcu", aliases=("mcu",), title="Table 2 from emulated Cortex-M4 instruction counts",
         quick_cost="~15 s", full_cost="~1 min", needs=("mcu-tools",),
-        options={"seed": (int, "srand() seed of the emulated C filter (default 1)")})
+        options={"seed": (int, "srand() seed of the emulated C filter (default 1)", SRAND_SEED)})
 def mcu(ctx):
     from pfbench.mcu import emulate as E
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from pfbench.ranges import COUNT
 from pfbench.recipes import recipe
 
 CASES = (("ob1", 1000.0, "Ob1, 1 kHz"), ("pmsm", 125.0, "PMSM, 8 kHz (dt = 125 us)"))
@@ -19,7 +20,7 @@ CASES = (("ob1", 1000.0, "Ob1, 1 kHz"), ("pmsm", 125.0, "PMSM, 8 kHz (dt = 125 u
 
 @recipe("embedded:mcu-fit", title="Largest N_p per Cortex-M core at a sampling period (float/double)",
         quick_cost="~5 s", full_cost="~5 s",
-        options={"steps": (int, "run length M for the per-step cost average (default 1000)")})
+        options={"steps": (int, "run length M for the per-step cost average (default 1000)", COUNT)})
 def mcu_fit(ctx):
     from pfbench.mcu import cores
     from pfbench.mcu.costmodel import fit

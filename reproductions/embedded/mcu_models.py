@@ -26,7 +26,13 @@ from __future__ import annotations
 
 import pandas as pd
 
+from pfbench.mcu import cores
+from pfbench.ranges import ListOf, OneOf, at_least
 from pfbench.recipes import recipe
+
+from .mcu import SRAND_SEED
+
+INT32 = 2 ** 31 - 1   # steps and particles are C ints of the harness
 
 # N a multiple of the 32-particle tile (see pfbench.mcu.emulate.MODEL_CONFIGS)
 QUICK_CONFIGS = {"float": ((4, 32), (8, 32), (4, 64), (8, 64)),
@@ -39,11 +45,12 @@ TARGET = 0.25   # the cost model should be within 25 % of the emulation
 @recipe("embedded:mcu-models", aliases=("mcu-models",),
         title="Any model on a Cortex-M4F: emulated cost vs cost model, per model and precision",
         quick_cost="~3 min", full_cost="~10 min", needs=("mcu-tools",),
-        options={"steps": (int, "M of the compared run (default 100)"),
-                 "particles": (int, "N_p of the compared run (default 500)"),
-                 "models": (str, "comma-separated model specs (default: every registered model)"),
-                 "seed": (int, "host simulation and srand() seed (default 1)"),
-                 "core": (str, "core to compile for and time (m4 default; m0plus, m3, m33)")})
+        options={"steps": (int, "M of the compared run (default 100)", at_least(1, INT32)),
+                 "particles": (int, "N_p of the compared run (default 500)", at_least(1, INT32)),
+                 "models": (list, "comma-separated model specs (default: every registered model)",
+                            ListOf(str)),
+                 "seed": (int, "host simulation and srand() seed (default 1)", SRAND_SEED),
+                 "core": (str, "core to compile for and time (default m4)", OneOf(*cores.names()))})
 def mcu_models(ctx):
     from pfbench import models
     from pfbench.errors import PfbenchError
@@ -53,8 +60,7 @@ def mcu_models(ctx):
     particles = ctx.option("particles", 500, int)
     seed = ctx.option("seed", 1, int)
     core = ctx.option("core", "m4", str)
-    names = [s.strip() for s in ctx.option("models", ",".join(models.names()), str).split(",")
-             if s.strip()]
+    names = ctx.option("models", list(models.names()))
     configs = FULL_CONFIGS if ctx.full else QUICK_CONFIGS
     rows, full = [], {}
     from pfbench.mcu import costmodel as CM

@@ -21,6 +21,7 @@ import pandas as pd
 from . import _host as bench_host
 from pfbench.mcu import costmodel as cm
 from pfbench.models import get as get_model
+from pfbench.ranges import COUNT, POSITIVE
 from pfbench.recipes import recipe
 from pfbench import plotting
 from pfbench.verdicts import CONSTRUCTION, close_to, holds, not_reproducible
@@ -45,14 +46,16 @@ PAPER_PLATFORMS = {"A": "AMD Ryzen 7 2700 (3.2 GHz), C#", "B": "Intel Core i5 42
                    "D(S)": "STM32F407 @ 168 MHz, double standard C"}
 
 
+REPEATS = (int, "timed runs per configuration (quick numba 5 / numpy 3, full 21 / 7)", COUNT)
+
+
 def _opt_float(ctx, key, default):
     return cm.checked_number(ctx.option(key, default, float), f"option {key}")
 
 
 def _repeats(ctx, backend):
     if "repeats" in ctx.options:
-        r = int(_opt_float(ctx, "repeats", 1))
-        return max(r, 1)
+        return ctx.option("repeats", 1, int)
     if ctx.full:
         return 21 if backend == "numba" else 7
     return 5 if backend == "numba" else 3
@@ -88,7 +91,7 @@ def _host_times(ctx, configs):
 
 @recipe("embedded:fig5", aliases=("fig5",), title="Platform timing: host vs STM32F4 model (Fig. 5)",
         quick_cost="~30 s", full_cost="~2 min",
-        options={"repeats": (int, "timed runs per configuration (quick numba 5 / numpy 3, full 21 / 7)")})
+        options={"repeats": REPEATS})
 def fig5(ctx):
     host = _host_times(ctx, CONFIGS)
     rows = []
@@ -256,9 +259,10 @@ def table2(ctx):
 
 @recipe("embedded:table3", aliases=("table3",), title="Energy per task, host vs STM32F4 (Table 3)",
         quick_cost="~20 s", full_cost="~1 min",
-        options={"repeats": (int, "timed runs per configuration (quick numba 5 / numpy 3, full 21 / 7)"),
-                 "host_power_w": (float, "host power model in W when RAPL is unreadable (default 10)"),
-                 "board_power_w": (float, "STM32F4 board power in W (default 1.39, Table 3)")})
+        options={"repeats": REPEATS,
+                 "host_power_w": (float, "host power model in W when RAPL is unreadable (default 10)",
+                                  POSITIVE),
+                 "board_power_w": (float, "STM32F4 board power in W (default 1.39, Table 3)", POSITIVE)})
 def table3(ctx):
     m, n = 1000, 1000
     host_power = _opt_float(ctx, "host_power_w", DEFAULT_HOST_POWER_W)

@@ -7,6 +7,7 @@ import numpy as np
 
 from pfbench.sweep import make_spec, run_sweep, summarize_frame
 from pfbench.procs import usable_cores
+from pfbench.ranges import COUNT
 from pfbench.errors import PfbenchError
 from pfbench.sweep.store import Store, journal_path, spec_hash
 from pfbench.verdicts import NOT_REPRODUCIBLE, Outcome, Reading, same_for_every
@@ -25,8 +26,8 @@ def filter_kw(run_filter=None) -> dict:
 
 
 #: the --option keys that :func:`sweep` and its helpers read (declare them on every recipe using it)
-OPTIONS = {"runs": (int, "Monte Carlo runs per configuration (see the recipe's quick/full counts)"),
-           "workers": (int, "worker processes of the sweep (default: all cores)")}
+OPTIONS = {"runs": (int, "Monte Carlo runs per configuration (see the recipe's quick/full counts)", COUNT),
+           "workers": (int, "worker processes of the sweep (default: all cores)", COUNT)}
 
 
 def workers(ctx) -> int:
@@ -91,11 +92,16 @@ def sweep(ctx, name: str, model: str, *, params=None, particles, filters, runs_q
     st = Store.read(out)
     frame = st.frame()
     summ = summarize_frame(frame, spec)
+    dropped = int(summ["dropped"].sum())
+    if dropped:
+        ctx.note(f"{name}: {dropped} run(s) with a NaN or infinite aRMSE are left out of the means "
+                 "and intervals (column dropped of the summary).")
     ctx.outputs.append(str(out))
     ctx.extra.setdefault("sweeps", {})[name] = {
         "tasks": rep.total, "new_tasks": rep.done_now, "wall_s": round(wall, 2),
         "tasks_per_s": round(rep.tasks_per_s, 2) if rep.done_now else None,
-        "worker_seconds": round(float(sum(c["wall_s"] for c in st.chunks)), 2), "runs": runs}
+        "worker_seconds": round(float(sum(c["wall_s"] for c in st.chunks)), 2), "runs": runs,
+        "dropped": dropped}
     return summ, spec, wall, st
 
 

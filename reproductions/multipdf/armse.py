@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from pfbench.ranges import COUNT, POSITIVE, ListOf
 from pfbench.recipes import recipe
 from pfbench.verdicts import Reading, all_cases, direction, not_reproducible
 
@@ -39,22 +40,14 @@ FIGS = [
 #: M = 10000 (1 s of the rig at T_s = 0.1 ms), inside that range, for --full; quick mode uses 1000.
 OB5_STEPS_FULL, OB5_STEPS_QUICK = 10000, 1000
 OB5_OPTIONS = {**OPTIONS,
-               "steps": (int, f"Ob5 horizon M (quick {OB5_STEPS_QUICK}, full {OB5_STEPS_FULL})"),
-               "r_scale": (str, "comma-separated factors on Ob5's measurement noise std "
-                                "(1e-4 m, 1e-2 N); default '1,10', the first one is plotted")}
+               "steps": (int, f"Ob5 horizon M (quick {OB5_STEPS_QUICK}, full {OB5_STEPS_FULL})", COUNT),
+               "r_scale": (list, "comma-separated factors on Ob5's measurement noise std "
+                                 "(1e-4 m, 1e-2 N); default '1,10', the first one is plotted",
+                           ListOf(float, POSITIVE))}
 
 
 def _scales(ctx):
-    text = ctx.option("r_scale", "1,10", str)
-    try:
-        vals = [float(v) for v in str(text).split(",") if v.strip()]
-    except ValueError:
-        vals = []
-    if not vals or any(v <= 0 for v in vals):
-        from pfbench.errors import InputError
-
-        raise InputError(f"--option r_scale={text}: need positive numbers separated by commas")
-    return vals
+    return ctx.option("r_scale", [1.0, 10.0])
 
 
 def _fig(name):

@@ -7,6 +7,7 @@ import pandas as pd
 import pfbench
 from pfbench.metrics import distance
 from pfbench.models import get
+from pfbench.ranges import COUNT
 from pfbench.recipes import recipe
 from pfbench.verdicts import CONSTRUCTION, Reading, all_cases, close_to, direction, holds
 
@@ -22,6 +23,7 @@ PCT_WHY = ("2 % relative (1.7 points): several times the sampling error of the p
 #: batch length for the claims: d(k) is autocorrelated along k, so per-step samples are not
 #: independent; means over batches of BATCH steps are (nearly), and the t-interval uses those.
 BATCH = 1000
+OPTIONS = {"steps": (int, "time steps M (quick 20000, full 100000)", COUNT)}
 
 
 def batch_means(x, batch=BATCH):
@@ -65,7 +67,7 @@ def _finish(ctx):
 
 
 @recipe("multipdf:table6", title="Distance statistics on Ob4 (Table 6)", quick_cost="~5 s",
-        full_cost="~20 s", options={"steps": (int, "time steps M (quick 20000, full 100000)")})
+        full_cost="~20 s", options=OPTIONS)
 def table6(ctx):
     d = _distances(ctx)
     df = pd.DataFrame([{"filter": k, "mean_d": float(v.mean()), "std_d": float(v.std(ddof=1))}
@@ -108,7 +110,7 @@ def table6(ctx):
 
 @recipe("multipdf:table7", title="Share of steps MultiPDF's d(k) is smaller (Table 7)",
         quick_cost="~5 s", full_cost="~20 s",
-        options={"steps": (int, "time steps M (quick 20000, full 100000)")})
+        options=OPTIONS)
 def table7(ctx):
     d = _distances(ctx)
     mp = d["MultiPDF"]

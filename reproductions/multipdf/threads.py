@@ -9,12 +9,15 @@ import pandas as pd
 
 import pfbench
 from pfbench.models import get
+from pfbench.ranges import COUNT
 from pfbench.recipes import recipe
 from pfbench.verdicts import Reading, direction, not_reproducible
 
 from ._common import ESTIMATE, filter_kw
 
 THREADS = (1, 2, 3, 5, 7, 10)
+OPTIONS = {"repeats": (int, "timed repetitions (quick 5, full 12)", COUNT),
+           "steps": (int, "time steps M (default 2000)", COUNT)}
 
 
 def _trimmed(times):
@@ -115,8 +118,7 @@ def _reduction(raw, n_p):
 
 
 @recipe("multipdf:fig12", title="Time vs threads, N_p = 1200 (Fig. 12)", quick_cost="~10 s",
-        full_cost="~30 s", options={"repeats": (int, "timed repetitions (quick 5, full 12)"),
-                                    "steps": (int, "time steps M (default 2000)")})
+        full_cost="~30 s", options=OPTIONS)
 def fig12(ctx):
     _timing(ctx, 1200, "fig12")
     ctx.note("fig12: the §6 sentences on Figs. 12-13 are scored once, in multipdf:fig13 (which times "
@@ -124,8 +126,7 @@ def fig12(ctx):
 
 
 @recipe("multipdf:fig13", title="Time vs threads, N_p = 1500 (Fig. 13)", quick_cost="~20 s",
-        full_cost="~1 min", options={"repeats": (int, "timed repetitions (quick 5, full 12)"),
-                                     "steps": (int, "time steps M (default 2000)")})
+        full_cost="~1 min", options=OPTIONS)
 def fig13(ctx):
     raw = _timing(ctx, 1500, "fig13")
     _df, raw12, _r, _m = _measure(ctx, 1200)

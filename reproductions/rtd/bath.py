@@ -14,6 +14,7 @@ import numpy as np
 from pfbench import plotting
 from pfbench.plants import rtd
 from pfbench.errors import DataError, InputError, PfbenchError
+from pfbench.ranges import POSITIVE, above, at_least
 from pfbench.recipes import recipe
 from pfbench.verdicts import SETUP, Reading, direction, holds, in_band, not_reproducible
 
@@ -30,15 +31,17 @@ def noise_var(y) -> float:
 _CACHE: dict = {}
 
 #: the --option keys :func:`run_bath` reads (the simulation's four only without --data)
-OPTIONS = {"R_meas": (float, "simulated measurement-noise variance (default 0.05)"),
-           "T_low": (float, "simulated bath temperature before the step up, degC (default 25)"),
-           "T_high": (float, "simulated bath temperature after the step up, degC (default 38)"),
-           "t_hold": (float, "simulated hold time of each level, s (default 60)"),
-           "gain": (float, "static gain of the RC model (default 1.0)"),
-           "ratio_a": (float, "Q/R of predictor a (default: calibrated, with ratio_b)"),
-           "ratio_b": (float, "Q/R of predictor b (default: calibrated, with ratio_a)"),
-           "ratio_kf": (float, "Q/R of the KF (default 1e-3)"),
-           "seeds": (int, "simulated runs the claims are decided over (default 5 quick, 30 full)")}
+CELSIUS = above(-273.15)   # above absolute zero
+OPTIONS = {"R_meas": (float, "simulated measurement-noise variance (default 0.05)", POSITIVE),
+           "T_low": (float, "simulated bath temperature before the step up, degC (default 25)", CELSIUS),
+           "T_high": (float, "simulated bath temperature after the step up, degC (default 38)", CELSIUS),
+           "t_hold": (float, "simulated hold time of each level, s (default 60)", POSITIVE),
+           "gain": (float, "static gain of the RC model (default 1.0)", POSITIVE),
+           "ratio_a": (float, "Q/R of predictor a (default: calibrated, with ratio_b)", POSITIVE),
+           "ratio_b": (float, "Q/R of predictor b (default: calibrated, with ratio_a)", POSITIVE),
+           "ratio_kf": (float, "Q/R of the KF (default 1e-3)", POSITIVE),
+           "seeds": (int, "simulated runs the claims are decided over (default 5 quick, 30 full; "
+                          "a paired difference needs two)", at_least(2))}
 
 #: measurement-noise variances of the simulated bath (degC^2; sd 0.07 to 0.45 degC) the claims are
 #: also computed at: the chapter states no noise level for its bath
@@ -132,8 +135,6 @@ def run_bath(ctx) -> dict:
                    levels={None: [shown["metrics"]]}, R0=None, cals={None: cal})
     else:
         n_seeds = ctx.option("seeds", 30 if ctx.full else 5, int)
-        if n_seeds < 2:
-            raise InputError("option seeds must be at least 2 (a paired difference needs two runs)")
         bath = dict(T_low=ctx.option("T_low", 25.0, float), T_high=ctx.option("T_high", 38.0, float),
                     t_hold=ctx.option("t_hold", 60.0, float))
         R0 = ctx.option("R_meas", 0.05, float)

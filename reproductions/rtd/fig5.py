@@ -5,7 +5,7 @@ import numpy as np
 
 from pfbench import plotting
 from pfbench.plants import rtd
-from pfbench.errors import InputError
+from pfbench.ranges import POSITIVE, OneOf, at_least
 from pfbench.recipes import recipe
 from pfbench.verdicts import Reading, close_to, proportion
 
@@ -31,24 +31,21 @@ RATE_TOL = 0.05
 
 @recipe("rtd:fig5", title="Time-varying KF on the simulated RTD (Fig. 5)", quick_cost="~5 s",
         full_cost="~30 s",
-        options={"Q": (float, "process-noise variance of the KF (default 2.3)"),
-                 "R": (float, "measurement-noise variance (default 1.0)"),
-                 "n": (int, "time steps (default 600)"),
-                 "model": (str, "sensor model: eq52 (default) or eq54")})
+        options={"Q": (float, "process-noise variance of the KF (default 2.3)", at_least(0.0)),
+                 "R": (float, "measurement-noise variance (default 1.0)", POSITIVE),
+                 "n": (int, "time steps (default 600; the run must reach t = 45 s)",
+                       at_least(round(45.0 / rtd.TS) + 1)),
+                 "model": (str, "sensor model (default eq52)", OneOf("eq52", "eq54"))})
 def fig5(ctx):
     import pandas as pd
 
     Qu, R = ctx.option("Q", 2.3, float), ctx.option("R", 1.0, float)
     n = ctx.option("n", 600, int)
-    which = str(ctx.options.get("model", "eq52"))
-    if which not in ("eq52", "eq54"):
-        raise InputError("option model must be eq52 or eq54")
+    which = ctx.option("model", "eq52")
     model = rtd.identified_model() if which == "eq52" else rtd.eq54_model()
     d = rtd.simulate_fig5(n=n, Qu=Qu, R=R, seed=ctx.seed, model=model)
     t = d["t"]
     late = t >= 45.0
-    if not late.any():
-        raise InputError("option n too small: the run must last at least 45 s")
     k45 = int(np.argmax(late))
     meas_err = d["y_meas"] - d["y_true"]
     est_err = d["y_true"] - d["yest"]

@@ -8,6 +8,7 @@ import numpy as np
 
 from pfbench import plotting
 from pfbench.plants import rtd
+from pfbench.ranges import at_least
 from pfbench.recipes import recipe
 from pfbench.verdicts import SETUP, holds, not_reproducible
 
@@ -19,6 +20,10 @@ def _lost(ax):
     """The text annotation every model-only figure carries."""
     ax.text(0.5, 0.5, LOST, transform=ax.transAxes, ha="center", va="center", fontsize=11, color="0.35",
             bbox=dict(boxstyle="round", fc="lightyellow", ec="0.6"))
+
+
+OPTIONS = {"t_end": (float, f"simulated time, s (default 60; at least one sample, {rtd.TS:g} s)",
+                     at_least(rtd.TS))}
 
 
 def _step_curves(t_end: float):
@@ -39,7 +44,7 @@ def _is_two_real_lags(y) -> bool:
 
 
 @recipe("rtd:fig2", title="Identified model: step response to the 38 degC input (Fig. 2, model only)",
-        quick_cost="~2 s", full_cost="~2 s", options={"t_end": (float, "simulated time, s (default 60)")})
+        quick_cost="~2 s", full_cost="~2 s", options=OPTIONS)
 def fig2(ctx):
     import pandas as pd
 
@@ -133,7 +138,7 @@ def fig3(ctx):
 
 
 @recipe("rtd:fig4", title="Model step responses of the identified models (Fig. 4, model only)",
-        quick_cost="~2 s", full_cost="~2 s", options={"t_end": (float, "simulated time, s (default 60)")})
+        quick_cost="~2 s", full_cost="~2 s", options=OPTIONS)
 def fig4(ctx):
     import pandas as pd
 

@@ -18,6 +18,8 @@ import pfbench
 from pfbench.models import get
 from pfbench.models.base import LOG_2PI
 from pfbench.models.thesis_example import ThesisExample
+from pfbench.errors import InputError
+from pfbench.ranges import COUNT, ListOf, OneOf, above, at_least
 from pfbench.recipes import recipe
 from pfbench.plotting import OTHER, OURS, PAPER, label, paper_value, subplots
 from pfbench.verdicts import Z95, CONSTRUCTION, Reading, close_to, direction, holds, in_band, same_for_every
@@ -69,8 +71,10 @@ MAJORITY = 0.5
 
 @recipe("thesis:fig2.2", title="SIS degeneracy, 50 particles, horizon 50 (thesis Fig. 2.2)",
         quick_cost="~10 s", full_cost="~1 min",
-        options={"particles": (int, "particles (default 50)"), "steps": (int, "time steps (default 50)"),
-                 "runs": (int, "Monte Carlo runs for the claim (quick 100, full 1000; run 0 is plotted)")})
+        options={"particles": (int, "particles (default 50)", COUNT),
+                 "steps": (int, "time steps (default 50)", COUNT),
+                 "runs": (int, "Monte Carlo runs for the claim (quick 100, full 1000; run 0 is plotted)",
+                          COUNT)})
 def fig2_2(ctx):
     n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
@@ -109,12 +113,17 @@ def fig2_2(ctx):
 
 @recipe("thesis:fig2.3", title="SIR, multinomial resampling, N_thres = 25 (thesis Fig. 2.3)",
         quick_cost="~10 s", full_cost="~1 min",
-        options={"particles": (int, "particles (default 50)"), "steps": (int, "time steps (default 50)"),
-                 "threshold": (float, "resample when N_eff < this many particles (default 25)"),
-                 "runs": (int, "Monte Carlo runs for the claim (quick 100, full 1000; run 0 is plotted)")})
+        options={"particles": (int, "particles (default 50)", COUNT),
+                 "steps": (int, "time steps (default 50)", COUNT),
+                 "threshold": (float, "resample when N_eff < this many particles (default 25; at "
+                                      "most particles)", above(0.0)),
+                 "runs": (int, "Monte Carlo runs for the claim (quick 100, full 1000; run 0 is plotted)",
+                          COUNT)})
 def fig2_3(ctx):
     n, M = ctx.option("particles", 50, int), ctx.option("steps", 50, int)
     thr = ctx.option("threshold", 25.0, float)
+    if thr > n:
+        raise InputError(f"--option threshold={thr:g}: must be at most particles ({n})")
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     model = get("thesis_example")
     tr = model.simulate(M, seed=[ctx.seed, 0])
@@ -201,11 +210,12 @@ OBSERVATIONS = {"linear": ThesisExample, "quadratic": ThesisExampleQuadratic}
 OUTLIERS = {"process": {"linear": ThesisExample, "quadratic": ThesisExampleQuadratic},
             "measurement": {"linear": ThesisExampleMeasurement,
                             "quadratic": ThesisExampleQuadraticMeasurement}}
+OUTLIER_STEP = 5   # the step of the thesis's w_5 = 0.5
 OBS_TEXT = {"linear": "y = x + v", "quadratic": "y = x^2/20 + v"}
 
 
 def _mse_runs(n_runs, n, M, backend, seed, progress, observation="linear", outlier="process"):
-    sim = OUTLIERS[outlier][observation](outlier_step=5)
+    sim = OUTLIERS[outlier][observation](outlier_step=OUTLIER_STEP)
     filt = sim.without_outlier()
     rows = []
     for r in progress(range(n_runs), total=n_runs):
@@ -267,26 +277,22 @@ def sweep_claim(ctx, claim, where, rows, primary, lost, paper, why="the recipe's
 
 @recipe("thesis:fig2.4", title="ASIR vs bootstrap with an outlier w_5 = 0.5 (thesis Fig. 2.4 + MSE)",
         quick_cost="~40 s", full_cost="~8 min",
-        options={"particles": (str, "comma-separated particle counts (default 50,100: the thesis's N was "
-                                    "lost; 50 is its chapter's other figures'; the first is plotted)"),
-                 "steps": (int, "time steps (default 20)"),
-                 "runs": (int, "Monte Carlo runs per reading (quick 100, full 1000)"),
-                 "observations": (str, "comma-separated readings of the lost observation equation: "
-                                       "linear (y = x + v), quadratic (y = x^2/20 + v); default both, "
-                                       "the first is plotted"),
-                 "outliers": (str, "comma-separated readings of the outlier w_5 = 0.5: process (the "
-                                   "text's, w is eq. 2.25's process noise), measurement; default both, "
-                                   "the first is primary")})
+        options={"particles": (list, "comma-separated particle counts (default 50,100: the thesis's N was "
+                                     "lost; 50 is its chapter's other figures'; the first is plotted)",
+                               ListOf(int, COUNT)),
+                 "steps": (int, f"time steps (default 20; the outlier enters at step {OUTLIER_STEP})",
+                           at_least(OUTLIER_STEP + 1)),
+                 "runs": (int, "Monte Carlo runs per reading (quick 100, full 1000)", COUNT),
+                 "observations": (list, "comma-separated readings of the lost observation equation: "
+                                        "linear (y = x + v), quadratic (y = x^2/20 + v); default both, "
+                                        "the first is plotted", ListOf(str, OneOf(*OBSERVATIONS))),
+                 "outliers": (list, "comma-separated readings of the outlier w_5 = 0.5: process (the "
+                                    "text's, w is eq. 2.25's process noise), measurement; default both, "
+                                    "the first is primary", ListOf(str, OneOf(*OUTLIERS)))})
 def fig2_4(ctx):
-    from pfbench.errors import InputError
-
-    ns = [int(v) for v in str(ctx.options.get("particles", "50,100")).split(",") if v.strip()]
-    obs = [v.strip() for v in str(ctx.options.get("observations", "linear,quadratic")).split(",") if v.strip()]
-    outs = [v.strip() for v in str(ctx.options.get("outliers", "process,measurement")).split(",") if v.strip()]
-    bad = [o for o in obs if o not in OBSERVATIONS] + [o for o in outs if o not in OUTLIERS]
-    if bad or not obs or not ns or not outs:
-        raise InputError(f"unknown readings {bad}; observations: {', '.join(OBSERVATIONS)}; "
-                         f"outliers: {', '.join(OUTLIERS)}")
+    ns = ctx.option("particles", [50, 100])
+    obs = ctx.option("observations", list(OBSERVATIONS))
+    outs = ctx.option("outliers", list(OUTLIERS))
     M = ctx.option("steps", 20, int)
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     where_text, where_caption = "[Thesis] §2.7.1", "[Thesis] §2.7.1, Fig. 2.4 caption"
@@ -340,7 +346,7 @@ def fig2_4(ctx):
 
 
 def _fig2_4_figure(ctx, table, first, out, obs, n, M):
-    sim = OUTLIERS[out][obs](outlier_step=5)
+    sim = OUTLIERS[out][obs](outlier_step=OUTLIER_STEP)
     filt = sim.without_outlier()
     extreme = int(first.assign(ratio=first.mse_bootstrap / first.mse_asir).ratio.idxmax())
     fig, axes = subplots(1, 3, figsize=(15, 4))

@@ -26,6 +26,7 @@ import pandas as pd
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, Scenario, run_batch, run_once
 from pfbench.models.pmsm import Q_THETA_FILTER
 from pfbench.plants.pmsm_control.smc import step_time_us
+from pfbench.ranges import COUNT, POSITIVE, ListOf, OneOf
 from pfbench.recipes import recipe
 
 from .ch2 import mse_reduction
@@ -79,14 +80,16 @@ FIG47_FAIL = [0.05, 0.11]
 FIG47_LOSS = ["1.2 x 10^? (exponent lost)", "2 x 10^? (exponent lost)"]
 
 
+Q_THETA = (float, "theta process-noise variance of the filter's model", POSITIVE)
+
 @recipe("thesis:fig4.7", title="Tracking loss for two particle counts, PI on the maximum (thesis Fig. 4.7)",
         quick_cost="~30 s", full_cost="~3 min",
-        options={"runs": (int, "closed-loop runs per particle count (quick 100, full 1000)"),
-                 "particles": (str, "comma-separated particle counts (default 30,15)"),
-                 "q_theta": (float, "theta process-noise variance of the filter's model")})
+        options={"runs": (int, "closed-loop runs per particle count (quick 100, full 1000)", COUNT),
+                 "particles": (list, "comma-separated particle counts (default 30,15)", ListOf(int, COUNT)),
+                 "q_theta": Q_THETA})
 def fig4_7(ctx):
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
-    ns = [int(v) for v in str(ctx.options.get("particles", "30,15")).split(",")]
+    ns = ctx.option("particles", [30, 15])
     results = []
     for n in ns:
         cfg = LoopConfig(n_particles=n, ess_threshold=1.0 / 3.0, point="max", backend=ctx.backend,
@@ -161,13 +164,13 @@ FIG49_PRIORS = ("uniform", "equidistant")
 
 @recipe("thesis:fig4.9", title="Tracking loss: mean vs random sample vs maximum (thesis Fig. 4.9)",
         quick_cost="~1 min", full_cost="~5 min",
-        options={"runs": (int, "closed-loop runs per point estimate (quick 100, full 1000)"),
-                 "particles": (int, "particles (default 60)"),
-                 "hold_s": (float, "hold time of the speed reference in s (default 0.4)"),
-                 "q_theta": (float, "theta process-noise variance of the filter's model"),
-                 "priors": (str, "comma-separated readings of the initial particles: uniform "
-                                 "(random samples), equidistant (default uniform,equidistant; the "
-                                 "first is fig4.9.png)")})
+        options={"runs": (int, "closed-loop runs per point estimate (quick 100, full 1000)", COUNT),
+                 "particles": (int, "particles (default 60)", COUNT),
+                 "hold_s": (float, "hold time of the speed reference in s (default 0.4)", POSITIVE),
+                 "q_theta": Q_THETA,
+                 "priors": (list, "comma-separated readings of the initial particles: uniform "
+                                  "(random samples), equidistant (default uniform,equidistant; the "
+                                  "first is fig4.9.png)", ListOf(str, OneOf(*FIG49_PRIORS)))})
 def fig4_9(ctx):
     """Both readings of "(there were used random samples)" ([Thesis] §4.4.4): ``uniform`` initial
     theta particles (the default, shown in fig4.9.png) and ``equidistant`` ones; and both readings
@@ -176,11 +179,7 @@ def fig4_9(ctx):
     n_runs = ctx.option("runs", 1000 if ctx.full else 100, int)
     n = ctx.option("particles", 60, int)
     hold = ctx.option("hold_s", 0.4, float)
-    priors = [v.strip() for v in str(ctx.options.get("priors", ",".join(FIG49_PRIORS))).split(",") if v.strip()]
-    bad = [v for v in priors if v not in FIG49_PRIORS]
-    if bad or not priors:
-        from pfbench.errors import InputError
-        raise InputError(f"unknown priors {bad}; choose from {', '.join(FIG49_PRIORS)}")
+    priors = ctx.option("priors", list(FIG49_PRIORS))
     modes = tuple(FIG49_FAIL)
     where = "[Thesis] §4.4.5, Fig. 4.9"
     rows, runs, outperform, fails, stated = [], {}, {}, {}, []

@@ -16,12 +16,14 @@ import pandas as pd
 
 from pfbench.plants.pmsm_control.closed_loop import LoopConfig, run_batch, run_once
 from pfbench.plants.pmsm_control.smc import step_time_us
+from pfbench.ranges import COUNT, INDEX, POSITIVE, ListOf, at_least
 from pfbench.recipes import recipe
 from pfbench import verdicts
 from pfbench.plotting import OTHER, OURS, label, subplots
 from pfbench.verdicts import SETUP, direction, holds, no_dependence
 
 DT = 125e-6
+RUN = (int, "which realisation (default 0)", INDEX)
 FIG44_TIMES = (0.0, 0.009, 0.019, 0.028, 0.038, 0.047, 0.056, 0.066, 0.075)
 
 
@@ -43,7 +45,7 @@ def _common(ctx):
 
 
 @recipe("thesis:fig4.1", title="Currents in the start-up, EKF vs SMC (thesis Fig. 4.1)",
-        quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
+        quick_cost="~10 s", full_cost="~10 s", options={"run": RUN})
 def fig4_1(ctx):
     run, smc, ekf = _common(ctx)
     t = np.arange(smc["x"].shape[0]) * DT
@@ -83,7 +85,7 @@ def _convergence_time(o, tol=0.3):
 
 
 @recipe("thesis:fig4.2", title="omega and theta, EKF vs SMC with bounds (thesis Fig. 4.2)",
-        quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
+        quick_cost="~10 s", full_cost="~10 s", options={"run": RUN})
 def fig4_2(ctx):
     run, smc, ekf = _common(ctx)
     t = np.arange(smc["x"].shape[0]) * DT
@@ -140,8 +142,9 @@ def fig4_2(ctx):
 
 @recipe("thesis:fig4.3", title="SMC posterior of omega and theta over time (thesis Fig. 4.3)",
         quick_cost="~10 s", full_cost="~10 s",
-        options={"run": (int, "which realisation (default 0)"),
-                 "t_end": (float, "end of the plotted window in s (default 0.1)")})
+        options={"run": RUN,
+                 "t_end": (float, f"end of the plotted window in s (default 0.1; at least one step, {DT:g} s)",
+                           at_least(DT))})
 def fig4_3(ctx):
     run, smc, _ = _common(ctx)
     M = smc["x"].shape[0]
@@ -184,7 +187,7 @@ def fig4_3(ctx):
 
 
 @recipe("thesis:fig4.4", title="SMC joint density of (omega, theta) at listed times (thesis Fig. 4.4)",
-        quick_cost="~10 s", full_cost="~10 s", options={"run": (int, "which realisation (default 0)")})
+        quick_cost="~10 s", full_cost="~10 s", options={"run": RUN})
 def fig4_4(ctx):
     run, smc, _ = _common(ctx)
     fig, axes = subplots(3, 3, figsize=(11, 9), sharex=True, sharey=True)
@@ -239,11 +242,12 @@ NO_DEP_MARGIN = 0.2
 
 @recipe("thesis:fig4.6", title="Estimation quality vs the prior's theta offset, EKF vs SMC (thesis Fig. 4.6)",
         quick_cost="~40 s", full_cost="~2 min",
-        options={"runs": (int, "runs per offset and estimator (default 10, the thesis's)"),
-                 "points": (int, "theta offsets in [0, pi] (quick 5, full 13)"),
-                 "prior_sd": (str, "comma-separated prior standard deviations of theta in rad "
-                                   "(default pi/sqrt(3),1: the EKF's spread, shown in fig4.6.png, and "
-                                   "1 rad)")})
+        options={"runs": (int, "runs per offset and estimator (default 10, the thesis's)", COUNT),
+                 "points": (int, "theta offsets in [0, pi] (quick 5, full 13; a dependence needs two)",
+                            at_least(2)),
+                 "prior_sd": (list, "comma-separated prior standard deviations of theta in rad "
+                                    "(default pi/sqrt(3),1: the EKF's spread, shown in fig4.6.png, and "
+                                    "1 rad)", ListOf(float, POSITIVE))})
 def fig4_6(ctx):
     """Both filters get the Gaussian theta prior N(theta_0 + offset, sd^2). The thesis does not give
     sd; the default is the EKF's own spread pi/sqrt(3) (that of the U(-pi, pi) prior of §4.4.1, the
@@ -251,7 +255,7 @@ def fig4_6(ctx):
     sd = 1 rad is also run (with it 60 particles centred pi away almost never cover the truth)."""
     n_runs = ctx.option("runs", 10, int)
     n_pts = ctx.option("points", 13 if ctx.full else 5, int)
-    sds = [float(v) for v in str(ctx.options.get("prior_sd", f"{EKF_PRIOR_SD!r},1.0")).split(",") if v.strip()]
+    sds = ctx.option("prior_sd", [EKF_PRIOR_SD, 1.0])
     offsets = np.linspace(0, math.pi, n_pts)
     rows, per_run = [], {}
     for sd in sds:
@@ -316,13 +320,14 @@ def fig4_6(ctx):
 
 @recipe("thesis:fig4.5", title="Two SMC realisations with the same plant noise (thesis Fig. 4.5)",
         quick_cost="~10 s", full_cost="~10 s",
-        options={"run": (int, "which plant realisation (default 0)"),
-                 "streams": (str, "two comma-separated filter streams (default 1,2)")})
+        options={"run": (int, "which plant realisation (default 0)", INDEX),
+                 "streams": (list, "two comma-separated filter streams (default 1,2)",
+                             ListOf(int, INDEX, min_items=2, max_items=2))})
 def fig4_5(ctx):
     """Same initial state, prior and plant-noise stream, two different random streams inside the
     particle filter (:attr:`LoopConfig.filter_stream`); PI on the posterior mean."""
     run = ctx.option("run", 0, int)
-    ks = [int(v) for v in str(ctx.options.get("streams", "1,2")).split(",")][:2]
+    ks = ctx.option("streams", [1, 2])
     outs = [run_once(LoopConfig(point="mean", backend=ctx.backend, filter_stream=k), ctx.seed, run)
             for k in ks]
     t = np.arange(outs[0]["x"].shape[0]) * DT

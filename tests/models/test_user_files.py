@@ -61,3 +61,50 @@ def test_sweep_workers_find_a_user_model(readme_model_file, tmp_path):
              "--runs", "2", "--steps", "10", "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert "4/4 tasks" in r.stdout
+
+
+def _file_registering(path, name):
+    """A copy of the README model's file at ``path`` that registers ``name``."""
+    from pathlib import Path
+
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    code = readme.read_text().split("## Your own model", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    path.write_text(code.split("\nm = ", 1)[0].replace('"my_growth"', f'"{name}"'))
+    return path
+
+
+def test_a_user_file_taking_a_builtin_name_is_an_error_naming_both_files(tmp_path):
+    """Before, the built-in won in the main process and the user's class in spawned sweep workers:
+    --workers 1 and 2 gave different numbers under one label, silently. Catches a user class that
+    replaces a built-in (or the reverse, in either order of loading)."""
+    builtin = models.model_class("ob1")
+    path = _file_registering(tmp_path / "shadow.py", "ob1")
+    with pytest.raises(InputError, match=r"shadow\.py.*'ob1'.*ob1\.py") as ei:
+        models.load_files([path])
+    assert "\n" not in str(ei.value)
+    assert models.model_class("ob1") is builtin and str(path.resolve()) not in models.loaded_files()
+    r = _cli("--models", str(path), "run", "--model", "ob1", "--steps", "3", "--particles", "10")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "shadow.py" in r.stderr and "ob1.py" in r.stderr
+
+
+def test_two_user_files_registering_one_name_is_an_error_naming_both(tmp_path):
+    first = _file_registering(tmp_path / "first.py", "user_twice")
+    second = _file_registering(tmp_path / "second.py", "user_twice")
+    assert models.load_files([first]) == ["user_twice"]
+    kept = models.model_class("user_twice")
+    with pytest.raises(InputError, match=r"second\.py.*'user_twice'.*first\.py"):
+        models.load_files([second])
+    assert models.model_class("user_twice") is kept      # the registry is as before the refused file
+
+
+def test_pool_workers_load_the_files_the_parent_loaded(tmp_path):
+    """A file loaded through the Python API (no --models, no PFBENCH_MODELS) is loaded by the
+    workers of a process pool too. Catches workers that only see the environment."""
+    from pfbench.procs import process_pool
+    import multiprocessing as mp
+
+    path = _file_registering(tmp_path / "pooled.py", "user_pooled")
+    models.load_files([path])
+    with process_pool(1, mp_context=mp.get_context("spawn")) as pool:
+        assert pool.submit(models.names).result(timeout=300).count("user_pooled") == 1

@@ -84,3 +84,21 @@ def test_cli_run_on_log_and_bad_log(tmp_path):
 def test_example_log_is_valid():
     cols = read_log(EXAMPLE)
     assert set(cols) >= {"time_s", "y", "u1", "u2", "t_out", "mode"} and len(cols["y"]) > 100
+
+
+def test_non_utf8_log_is_one_line_naming_the_file(tmp_path):
+    """A log saved as Latin-1 (degree sign as byte 0xb0) used to end in a UnicodeDecodeError
+    traceback; now one line naming file, line and byte, exit 2. Catches a decode error that escapes."""
+    bad = tmp_path / "latin1.csv"
+    bad.write_bytes(GOOD.replace("t_out\n", "t_out # \xb0C\n").encode("latin-1"))
+    r = CliRunner().invoke(main, ["run", "--model", "thermal_inertial", "--data", str(bad), "--backend", "numpy"])
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.exit_code == 2 and len(lines) == 1, r.output
+    assert lines[0].startswith("error:") and "latin1.csv:1: not UTF-8" in lines[0] and "0xb0" in lines[0]
+
+
+def test_byte_order_mark_is_accepted(tmp_path):
+    """Spreadsheets write UTF-8 with a byte-order mark; it must not hide the first column."""
+    p = tmp_path / "bom.csv"
+    p.write_bytes(GOOD.encode("utf-8-sig"))
+    assert list(read_log(p))[0] == "time_s"

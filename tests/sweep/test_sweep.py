@@ -12,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 import pfbench
+from pfbench import models
 from pfbench.errors import PfbenchError
 from pfbench.models import get
 from pfbench.sweep import load_frame, make_spec, run_chunk, run_multipdf, run_sweep, summarize_frame
@@ -133,6 +134,8 @@ def test_summarize_cli(tmp_path):
     data = json.loads(r.output[: r.output.rindex("]") + 1])
     assert {d["method"] for d in data} == {"multipdf", "mpf"}
     assert load_frame(out)[1]["params"] == {"version": 2}   # the variant is stored as a parameter
+    # rows and summary name the full model spec (they said "ob3" for every version)
+    assert {d["model"] for d in data} == {"ob3:v2"} and set(load_frame(out)[0]["model"]) == {"ob3:v2"}
     assert all(d["runs"] == 3 and d["armse_lo"] <= d["armse_mean"] <= d["armse_hi"] for d in data)
     assert Path(str(out) + ".summary.png").is_file()
     r = CliRunner().invoke(main, ["sweep", "summarize", str(tmp_path / "nope.jsonl")])
@@ -146,6 +149,28 @@ def test_summary_interval():
     half = 2 * np.std([1, 2, 3, 4], ddof=1) / 2
     assert s["armse_mean"] == 2.5 and s["armse_hi"] - 2.5 == pytest.approx(half)
     assert s["runs_per_s"] == pytest.approx(2.0)
+
+
+def test_summary_says_how_many_runs_were_not_finite(monkeypatch):
+    """A diverged run (NaN or infinite aRMSE) used to vanish from the mean without a word. Catches
+    a summary (and `sweep summarize`) that drops runs silently."""
+    from click.testing import CliRunner
+
+    from pfbench.cli import main
+    from pfbench.metrics import mean_interval
+
+    assert mean_interval([1.0, np.nan, 3.0, np.inf]) == (2.0, pytest.approx(0.0), pytest.approx(4.0), 2)
+    frame = pd.DataFrame({"method": "bootstrap", "n_particles": 10, "n_filters": 1,
+                          "armse": [1.0, np.nan, 3.0, np.inf], "elapsed_s": 0.5})
+    s = summarize_frame(frame, {"model": "ob3", "params": {"version": 4}}).iloc[0]
+    assert s["runs"] == 4 and s["dropped"] == 2 and s["armse_mean"] == 2.0 and s["model"] == "ob3:v4"
+    assert models.format_spec("ob4", {"shared_noise": True}) == "ob4 shared_noise=true"
+    assert models.parse_spec(models.format_spec("ob3", {"version": 4})) == ("ob3", {"version": 4})
+    monkeypatch.setattr("pfbench.sweep.store.load_frame",
+                        lambda path: (frame, {"model": "ob3", "params": {"version": 4}}, []))
+    r = CliRunner().invoke(main, ["sweep", "summarize", "any.jsonl", "--no-plot"])
+    assert r.exit_code == 0, r.output
+    assert "ob3:v4" in r.stdout and "2 run(s) with a NaN or infinite aRMSE" in r.stderr
 
 
 def test_grid_file(tmp_path):
