@@ -235,8 +235,9 @@ def truth_stream(seed: int):
               help="Write the per-step estimates, variances, ESS and log-likelihood increments to this "
                    ".csv or .parquet file (and the run's provenance to <file>.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option("--strict", is_flag=True, help="A non-finite log-likelihood is an error (exit 2), not a warning.")
 def run(model_name, method, particles, filters, steps, resampling, ess_threshold, estimate, backend, dtype,
-        threads, seed, truth_seed, params, data, out_file, as_json):
+        threads, seed, truth_seed, params, data, out_file, as_json, strict):
     """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
     import numpy as np
 
@@ -290,9 +291,12 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         out["note"] = res.info["note"]
     bad = res.first_nonfinite_step()
     if bad is not None:
-        click.echo(f"warning: the log-likelihood is {res.loglik} from step {bad} on: there every particle's "
-                   "likelihood was zero, NaN or infinite (check the model's log_likelihood and transition, "
-                   "or the measurement at that step)", err=True)
+        why = (f"the log-likelihood is {res.loglik} from step {bad} on: there every particle's likelihood was "
+               "zero, NaN or infinite (check the model's log_likelihood and transition, or the measurement "
+               "at that step)")
+        if strict:
+            raise PfbenchError(why)
+        click.echo(f"warning: {why}", err=True)
     if out_file:
         from . import io
         from .provenance import provenance

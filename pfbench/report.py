@@ -34,7 +34,7 @@ def verify(path: str | Path, recipe_id: str) -> tuple[dict | None, list[str]]:
     artefact or one whose SHA-256 differs from the record's."""
     path = Path(path)
     try:
-        rec = io.loads(path.read_text(errors="replace"), str(path))
+        rec = io.loads(path.read_text(encoding="utf-8", errors="replace"), str(path))
     except OSError as exc:
         return None, [f"record {path} cannot be read ({exc.strerror or exc})"]
     except PfbenchError as exc:
