@@ -160,12 +160,15 @@ def block_moments(xs, i0, i1, b, bsx, bsxx):
     on the default ``pre`` path."""
     x = xs[i0:i1]  # a view that starts at 0 (see block_weights)
     for c in range(xs.shape[1]):
-        bsx[b, c], bsxx[b, c] = _usums4(x[:, c], np.float64(xs[0, c]))
+        bsx[b, c], bsxx[b, c] = _sums4(None, x[:, c], np.float64(xs[0, c]))
 
 
 @register_jitable
-def _usums4(v, shift):
-    """(sum v_i, sum (v_i - shift)^2) with four partial sums each (:func:`_sums4` without weights)."""
+def _sums4(w, v, shift):
+    """(sum w_i v_i, sum w_i (v_i - shift)^2) over the block in one pass over ``w`` and ``v``, each
+    with four partial sums so the adds do not wait on each other (the order differs from a plain
+    loop in the last bits: the estimates, which feed nothing back). ``w`` None: every weight 1 (the
+    ``estimate="post"`` pass over resampled particles)."""
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
@@ -181,52 +184,13 @@ def _usums4(v, shift):
         v1 = np.float64(v[i + 1])
         v2 = np.float64(v[i + 2])
         v3 = np.float64(v[i + 3])
-        s0 += v0
-        s1 += v1
-        s2 += v2
-        s3 += v3
-        d0 = v0 - shift
-        d1 = v1 - shift
-        d2 = v2 - shift
-        d3 = v3 - shift
-        q0 += d0 * d0
-        q1 += d1 * d1
-        q2 += d2 * d2
-        q3 += d3 * d3
-        i += 4
-    while i < n:
-        v0 = np.float64(v[i])
-        d0 = v0 - shift
-        s0 += v0
-        q0 += d0 * d0
-        i += 1
-    return (s0 + s1) + (s2 + s3), (q0 + q1) + (q2 + q3)
-
-
-@register_jitable
-def _sums4(w, v, shift):
-    """(sum w_i v_i, sum w_i (v_i - shift)^2) over the block in one pass over ``w`` and ``v``, each
-    with four partial sums so the adds do not wait on each other (the order differs from a plain
-    loop in the last bits: the estimates, which feed nothing back)."""
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    s3 = 0.0
-    q0 = 0.0
-    q1 = 0.0
-    q2 = 0.0
-    q3 = 0.0
-    n = w.shape[0]
-    i = 0
-    while i + 4 <= n:
-        v0 = np.float64(v[i])
-        v1 = np.float64(v[i + 1])
-        v2 = np.float64(v[i + 2])
-        v3 = np.float64(v[i + 3])
-        w0 = w[i]
-        w1 = w[i + 1]
-        w2 = w[i + 2]
-        w3 = w[i + 3]
+        if w is None:  # unweighted: the type of ``w`` decides, at compile time
+            w0 = w1 = w2 = w3 = 1.0
+        else:
+            w0 = w[i]
+            w1 = w[i + 1]
+            w2 = w[i + 2]
+            w3 = w[i + 3]
         s0 += w0 * v0
         s1 += w1 * v1
         s2 += w2 * v2
@@ -243,7 +207,8 @@ def _sums4(w, v, shift):
     while i < n:
         v0 = np.float64(v[i])
         d0 = v0 - shift
-        s0 += w[i] * v0
-        q0 += w[i] * (d0 * d0)
+        w0 = 1.0 if w is None else w[i]
+        s0 += w0 * v0
+        q0 += w0 * (d0 * d0)
         i += 1
     return (s0 + s1) + (s2 + s3), (q0 + q1) + (q2 + q3)
