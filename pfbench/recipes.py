@@ -428,7 +428,7 @@ class RecipeContext:
         other readings, shown beneath it as sensitivity rows; the claim is marked "depends on
         reading" when their verdicts differ from the primary one's.
         """
-        from .verdicts import KINDS, CONSTRUCTION, FINDING, Outcome, Reading
+        from .verdicts import AGREE, CONSTRUCTION, FINDING, KINDS, Outcome, Reading
 
         if not isinstance(outcome, Outcome):
             raise TypeError("claim() needs an Outcome from pfbench.verdicts (verdicts are computed)")
@@ -442,6 +442,10 @@ class RecipeContext:
         if others and not reading.strip():
             raise ValueError(f"claim {claim!r}: with other readings, say which reading is primary "
                              "and why (reading=...)")
+        if (outcome.verdict == AGREE and outcome.interval is not None and outcome.band is not None
+                and not outcome.band[0] <= outcome.interval[0] <= outcome.interval[1] <= outcome.band[1]):
+            raise RuntimeError(f"claim {claim!r} agrees although its interval {outcome.interval} leaves its "
+                               f"band {outcome.band}: build outcomes with the rules of pfbench.verdicts")
         if kind == FINDING and any(c["kind"] == FINDING and c["claim"] == claim and c["where"] == where
                                    for c in self.claims):
             raise RuntimeError(f"recipe {self.recipe.id} scores the sentence {claim!r} ({where}) twice: "

@@ -208,3 +208,13 @@ def test_scorecard_states_the_multiplicity(tmp_path):
     text = report.write_report(tmp_path)[0].read_text()
     assert "1 of the agree/disagree verdicts are decisions from a 95 % interval" in text
     assert "at most about 0.1 of them are expected to be wrong by chance" in text
+
+
+def test_no_claim_agrees_with_an_interval_that_leaves_its_band(tmp_path):
+    """The rules cannot produce it; an Outcome built by hand that does (the old overlap rule's
+    'agree' on 9/100 against 2 % ± 3 %) is refused when recorded."""
+    rec = recipes.resolve("thesis:fig2.2")
+    overlap = verdicts.Outcome(verdicts.AGREE, "overlap", 0.09, (0.048, 0.162), 100, (0.0, 0.05))
+    with pytest.raises(RuntimeError, match="leaves its band"):
+        recipes.run(dataclasses.replace(rec, func=lambda ctx: ctx.claim("rate", "w", "q", overlap)),
+                    out_root=tmp_path, quiet=True)
