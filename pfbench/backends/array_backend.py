@@ -120,8 +120,8 @@ def normals(xp, key, n_rows: int, n: int, t: int, n_noise: int) -> "np.ndarray":
 def uniforms(xp, key, n_rows: int, n: int, t: int):
     """(n_rows, n) float64 uniforms in [0, 1) of step ``t``: word 0 of Philox(i, t, UNIFORM, f)
     (systematic uses column 0 only, stratified all). A few words (systematic's one per row) are
-    computed on the host and copied: on a GPU the dozen tiny kernels of the Philox rounds cost more
-    than the copy (the same words: NumPy and CuPy compute Philox alike)."""
+    computed on the host and copied: on a GPU the many tiny kernel launches of the Philox rounds
+    cost more than the copy (the same words: NumPy and CuPy compute Philox alike)."""
     if xp is not np and n_rows * n <= SMALL:
         return xp.asarray(uniforms(np, key, n_rows, n, t))
     i = xp.arange(n, dtype=xp.uint64)[None, :]
@@ -181,9 +181,9 @@ SMALL = 64
 
 
 def row_max(xp, a):
-    """The max of each row of a (F, n) array. For a few long rows on a GPU, row by row: CuPy
-    reduces ``axis=1`` of one 10^8-long row in one thread block (39 ms measured on an H100)
-    against 0.3 ms for the whole-array reduction."""
+    """The max of each row of a (F, n) array. For a few long rows on a GPU, row by row: CuPy gives
+    an ``axis=1`` reduction one thread block per row, which leaves a long row to one block, while a
+    whole-array reduction spreads over the device (docs/PERFORMANCE.md has the timings)."""
     if xp is np or a.shape[0] > SMALL:
         return a.max(axis=1)
     return xp.stack([a[f].max() for f in range(a.shape[0])])
