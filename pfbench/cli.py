@@ -31,8 +31,7 @@ import click
 
 from .clitypes import OUT_DIR, OUT_FILE, ChoiceList, complete_models, complete_papers, complete_recipes
 from .errors import PfbenchError
-from .filters.inputs import BACKENDS, DTYPES
-from .filters.methods import ESTIMATES, METHODS
+from .methods import BACKENDS, DTYPES, ESTIMATES, METHODS
 from .options import parse_key_values
 from .resampling import SCHEMES
 

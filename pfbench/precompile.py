@@ -47,7 +47,7 @@ def targets(models, methods=("bootstrap",), schemes=("systematic",), dtypes=("fl
     with ``all_threads`` the all-threads kernel too for the methods that have one (one particle
     filter: MultiPDF runs its sub-filters side by side on one thread each, and the mpf, guided and
     kalman kernels are serial)."""
-    from .filters.methods import Method
+    from .methods import Method
 
     def variants(method):
         m = Method.parse(method)

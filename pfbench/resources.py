@@ -79,7 +79,7 @@ class Limit:
 def filter_memory(model, method: str, *, n_filters: int = 1, n_steps: int = 1, dtype: str = "float64",
                   backend: str = "numba", store_particles: bool = False) -> MemoryNeed:
     """The memory of one :func:`pfbench.run_filter` call (see the module docstring)."""
-    from .filters.methods import Method
+    from .methods import Method
 
     fam = Method.parse(method).family
     n_x, n_y = int(model.n_x), int(getattr(model, "n_y", 1))
@@ -219,7 +219,7 @@ def check_filter_memory(model, method: str, n_particles: int, *, n_filters: int 
                         dtype: str = "float64", backend: str = "numba", store_particles: bool = False,
                         flag: str = "--particles", processes: int = 1) -> MemoryNeed:
     """:func:`filter_memory` + :func:`check_memory` for one run; returns the need."""
-    from .filters.methods import Method
+    from .methods import Method
 
     need = filter_memory(model, method, n_filters=n_filters, n_steps=n_steps, dtype=dtype,
                          backend=backend, store_particles=store_particles)

@@ -282,7 +282,7 @@ def test_startup_cases_use_models_that_declare_the_structure():
     """mpf needs a model with linear and nonlinear states, guided one with a proposal, kalman one
     whose states are all linear (catches a case that would time an error or a one-copy MPF)."""
     from pfbench import models
-    from pfbench.filters.methods import Method
+    from pfbench.methods import Method
 
     assert {m for m, _, _ in startup.CASES} == {m.label for m in Method}
     for method, name, _ in startup.CASES:

@@ -66,10 +66,10 @@ def test_compiled_kernels_load_in_a_later_process(tmp_path):
     assert rows["bootstrap"]["status"] == "ready"
     assert rows["mpf"]["status"] == "not applicable" and "linear" in rows["mpf"]["detail"]
     script = ("import json, pfbench\n"
-              "from pfbench.backends.numba_backend import kernel_module\n"
+              "from pfbench.backends.kernels import build\n"
               "m = pfbench.models.get('ob1'); tr = m.simulate(20, seed=3)\n"
               "pfbench.run_filter(m, tr.y, tr.u, method='bootstrap', n_particles=1000, seed=3)\n"
-              "st = kernel_module(m, 'particle', 'systematic').run_group.stats\n"
+              "st = build('particle', m, 'systematic').run_group.stats\n"
               "print(json.dumps({'hits': sum(st.cache_hits.values()), 'misses': sum(st.cache_misses.values())}))\n")
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600,
                        cwd=tmp_path)

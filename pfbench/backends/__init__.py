@@ -7,7 +7,7 @@ their compiled kernels in ``numba_mpf.py`` / ``numba_guided.py``.
 """
 from __future__ import annotations
 
-from ..filters.inputs import check_backend
+from ..methods import check_backend
 
 
 def get(name: str):

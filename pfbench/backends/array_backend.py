@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..filters.methods import Method
+from ..methods import Method
 from ..resampling import Scheme
 
 #: Philox4x64 multipliers and Weyl key increments (Random123; numpy.random.Philox)

@@ -5,8 +5,8 @@ numba's own cache keys a compiled function on *its* source file only, so editing
 in another module (which the cached function inlined) leaves the old machine code in use. pfbench
 therefore installs a numba cache locator for
 
-* every function defined in the installed ``pfbench`` package,
-* the generated kernel modules under ``$PFBENCH_CACHE_DIR/kernels``, and
+* every function defined in the installed ``pfbench`` package (a kernel template built for a
+  model, :func:`pfbench.backends.kernels.build`, in a directory of its module's own), and
 * model source files that a kernel compiles (registered by :func:`track_file`),
 
 whose source stamp is :func:`package_fingerprint` (a hash of every ``.py`` file of the package,
@@ -135,13 +135,11 @@ def _covered(py_file: str) -> bool:
     real = os.path.realpath(py_file)
     if real in _TRACKED:
         return True
-    for root in (PACKAGE_DIR, cache_root() / "kernels"):
-        try:
-            Path(real).relative_to(os.path.realpath(root))
-            return True
-        except ValueError:
-            continue
-    return False
+    try:
+        Path(real).relative_to(os.path.realpath(PACKAGE_DIR))
+        return True
+    except ValueError:
+        return False
 
 
 def _locator_class():
@@ -153,7 +151,10 @@ def _locator_class():
         def __init__(self, py_func, py_file):
             self._py_file = py_file
             self._lineno = py_func.__code__.co_firstlineno
-            self._cache_path = str(cache_root() / "numba" / self.get_suitable_cache_subpath(py_file))
+            # one directory per module: a kernel template runs as one module per model
+            # (:func:`pfbench.backends.kernels.build`), whose functions share file and line
+            self._cache_path = str(cache_root() / "numba" / self.get_suitable_cache_subpath(py_file)
+                                   / py_func.__module__)
 
         def get_cache_path(self):
             return self._cache_path

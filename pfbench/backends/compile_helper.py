@@ -10,20 +10,12 @@ run one after the other in one process: for Ob1 about 3.0 s (pass A) and 3.6 s (
 measured with numba's event recorder on a quiet machine.
 
 With two or more usable cores, when the driver and any of those functions are missing from the
-disk cache,
-:func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`. While this process
-runs a single Python thread (a command-line run, a script), the helper is a fork of it: numba,
-pfbench and the model are imported already and it starts compiling at once (on Linux; see
-:func:`_fork`). Otherwise (a fork copies only the calling thread, and a lock another thread holds
-would stay locked in the child)
-it is a new Python (``python -c``, with this process's import path, so it imports the same
-pfbench and model module), handed the model class (by module and name), the kernel family, the
-tile layout and the functions' names and argument types; it spends about 0.4 s importing before
-it compiles. Measured, cold ``pfbench run``, fork vs new interpreter: Ob1 bootstrap 4.4 vs 4.6 s,
-Ob5 MPF 4.9-5.0 vs 5.1 s. Either way the helper compiles those functions into the same disk
-cache (:mod:`pfbench.backends.cache`: one cache per installation) while this process compiles
-the driver; :meth:`Helper.finish` waits for it, and this process then loads the functions from
-disk.
+disk cache, :func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`: a new
+Python (``python -c``, with this process's import path, so it imports the same pfbench and model
+module) is handed the model class (by module and name), the kernel family, the tile layout and the
+functions' names and argument types, and compiles those functions into the same disk cache
+(:mod:`pfbench.backends.cache`) while this process compiles the driver; :meth:`Helper.finish`
+waits for it, and this process then loads the functions from disk.
 
 What the helper takes is the caller's choice (``here`` of
 :func:`pfbench.backends.numba_backend.native_addresses`): the particle kernel hands it pass A,
@@ -46,10 +38,8 @@ from __future__ import annotations
 
 import os
 import pickle
-import signal
 import subprocess
 import sys
-import threading
 
 from ..procs import usable_cores
 
@@ -99,18 +89,14 @@ class Helper:
 
 def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | None:
     """Compile ``functions``, a list of ``(name, argument types)``, of the any-scheme kernel module
-    of ``model_cls`` for the kernel ``family`` (:func:`pfbench.backends.numba_backend.kernel_module`
+    of ``model_cls`` for the kernel ``family`` (:func:`pfbench.backends.kernels.build`
     with ``scheme=None``) in a helper process, into the disk cache; None when no helper is used
     (see the module docstring) or it cannot be started."""
     if not enabled() or model_cls.__module__ == "__main__":
         return None
     functions = [(name, tuple(argtypes)) for name, argtypes in functions]
-    if sys.platform.startswith("linux") and threading.active_count() == 1:  # macOS: see _fork
-        return _fork(model_cls, family, bool(f_tiles), functions)
-    from .numba_backend import FAMILIES
-
     spec = {"module": model_cls.__module__, "qualname": model_cls.__qualname__,
-            "family": family, "family_def": FAMILIES[family], "f_tiles": bool(f_tiles),
+            "family": family, "f_tiles": bool(f_tiles),
             "functions": functions, "parent": os.getpid()}
     try:
         proc = subprocess.Popen([sys.executable, "-c", _BOOT], stdin=subprocess.PIPE,
@@ -143,9 +129,8 @@ def _main(spec: dict) -> int:
     from pfbench.procs import die_with_parent
 
     die_with_parent(spec["parent"])
-    from pfbench.backends.numba_backend import model_class_by_name, register_family
+    from pfbench.backends.kernels import model_class_by_name
 
-    register_family(spec["family"], *spec["family_def"])
     _compile(model_class_by_name(spec["module"], spec["qualname"]), spec["family"], spec["f_tiles"],
              spec["functions"])
     return 0
@@ -154,62 +139,8 @@ def _main(spec: dict) -> int:
 def _compile(model_cls: type, family: str, f_tiles: bool, functions) -> None:
     """Compile ``functions`` of the any-scheme kernel module of ``model_cls`` (the helper's work)."""
     from pfbench.backends import native_call
-    from pfbench.backends.numba_backend import kernel_module
+    from pfbench.backends.kernels import build
 
-    mod = kernel_module(model_cls, family, None, f_tiles=f_tiles)
+    mod = build(family, model_cls, None, f_tiles=f_tiles)
     for name, argtypes in functions:
         native_call.entry_address(getattr(mod, name), argtypes)
-
-
-class _Forked:
-    """A forked helper, with the two methods :class:`Helper` uses of a ``subprocess.Popen``."""
-
-    def __init__(self, pid: int):
-        self.pid = pid
-        self.code = None
-
-    def wait(self) -> int:
-        if self.code is None:
-            try:
-                self.code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
-            except ChildProcessError:  # reaped elsewhere (SIGCHLD ignored): its outcome is unknown
-                self.code = 1
-        return self.code
-
-    def kill(self) -> None:
-        if self.code is None:
-            try:
-                os.kill(self.pid, signal.SIGKILL)
-            except ProcessLookupError:  # pragma: no cover - it ended meanwhile (waited for below)
-                pass
-
-
-def _fork(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | None:
-    """The helper as a fork of this process: it has numba, pfbench and the model imported already,
-    so it starts compiling at once, where a new interpreter first spends about 0.4 s importing
-    them. Taken only while this process runs no other Python thread (a fork copies just the
-    calling thread, and a lock another thread held would stay locked in the child; the helper
-    itself runs no parallel code), and only on Linux (on macOS a forked child that touches the
-    system frameworks may crash or hang, which is why Python's ``multiprocessing`` spawns there).
-    The child never returns into the caller: it ends with ``os._exit``, 0 when it compiled
-    everything, 1 on any error or interrupt."""
-    parent = os.getpid()
-    try:
-        pid = os.fork()
-    except OSError:
-        return None
-    if pid:
-        return Helper(_Forked(pid))
-    code = 1
-    try:  # the child
-        null = os.open(os.devnull, os.O_RDWR)
-        for fd in (0, 1, 2):  # nothing of the helper's reaches this process's output
-            os.dup2(null, fd)
-        from ..procs import die_with_parent
-
-        die_with_parent(parent)
-        _compile(model_cls, family, f_tiles, functions)
-        code = 0
-    finally:
-        os._exit(code)
-

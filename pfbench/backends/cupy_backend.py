@@ -436,7 +436,7 @@ def run_groups(model, y, u, seed_seq, *, backend: str, method, n_per: int, n_fil
                ess_threshold: float, dtype: str, store_particles: bool = False):
     """Run :func:`pfbench.backends.array_backend.run_groups` for ``backend`` (``cupy`` or
     ``xp-numpy``); returns ``(out, elapsed_s, info)`` (see there)."""
-    from ..filters.methods import Method
+    from ..methods import Method
     from ..resampling import Scheme
 
     method, scheme = Method.parse(method), Scheme.parse(resampling)

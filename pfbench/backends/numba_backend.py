@@ -1,227 +1,25 @@
-"""The numba backend: a model's own functions compiled into cached filter kernels.
+"""The numba backend: the particle family's run entry point and the calls by address that every
+family's driver makes.
 
-numba's on-disk cache cannot hold a kernel that receives the model functions as arguments or
-closure variables. So each filter family has its kernel written as a real module of this package
-(``numba_particle.py``, ``numba_mpf.py``, ``numba_guided.py``) that calls the model through module
-globals, and for each (family, model class) we write a copy of that module into the cache
-directory, with the model's njit-compiled functions bound to those globals at its end::
-
-    <the family's kernel module source>
-    <footer: bind the model's compiled functions to the kernel's globals>
-
-and import it (a scheme's module also binds the family's scheme-free functions, :data:`SCHEME_FREE`,
-to those of the model's any-scheme module, so they are compiled once per model). Its kernels are
-ordinary module-level cached functions, so a second process loads
-machine code from disk instead of recompiling. The file name carries a hash of the whole pfbench
-package, the model's module source and the numba/NumPy versions, so editing anything gives a
-new module and a fresh compile, never a stale kernel (see :mod:`pfbench.backends.cache`).
-
-Cache location: ``kernels`` in :func:`pfbench.backends.cache.cache_root`.
-
-A generated file that is damaged (truncated, garbage, not UTF-8, a directory in its place) no longer
-matches the text pfbench generates: it is rewritten (atomically: temporary file + rename, so a
-concurrent process never reads half a file) with one
-:class:`~pfbench.backends.cache.CacheRepairWarning` line. The module is executed from the generated
-text itself, never from the file or a ``__pycache__`` byte-code copy, so a file damaged after that
-check cannot break the import either.
+Kernels are built by :func:`pfbench.backends.kernels.build` (one module per model, scheme and tile
+layout, from the family's template module); this module runs them: :func:`run_group` (the
+particle kernel), :func:`run_mpf`/:func:`run_kalman` and :func:`run_guided`, and
+:func:`native_addresses`, which compiles the functions a driver calls by address (on a cold cache
+in a helper process, :mod:`pfbench.backends.compile_helper`) and returns their entry points.
 """
 from __future__ import annotations
 
-import hashlib
-import importlib
-import importlib.util
-import inspect
-import os
-import sys
 import threading
-from pathlib import Path
 
 import numpy as np
 
-from ..io import write_text
+from ..methods import Estimate, Method
 from ..procs import free_cores
-from ..filters.methods import Estimate, Method
 from ..resampling import Scheme
-from . import cache, compile_helper, native_call, pcg64
+from . import compile_helper, native_call, pcg64
+from .kernels import build, column_major_tiles
 
-_HERE = Path(__file__).resolve().parent
-#: family -> (kernel module file, the model functions it calls as ``_<name>``)
-FAMILIES: dict[str, tuple[str, tuple[str, ...]]] = {
-    "particle": ("numba_particle.py", ("transition", "log_likelihood")),
-}
-#: family -> its module's functions that depend on the model but not on the resampling scheme: the
-#: module of a scheme takes them from the model's any-scheme module (``scheme=None``), so all the
-#: schemes of a model share one compilation of them (the particle kernel's pass A, the draws and the
-#: model inlined, is about 40 % of its cold compile)
-SCHEME_FREE: dict[str, tuple[str, ...]] = {
-    "particle": ("_pass_a",), "mpf": ("_transition_into", "_observation_into", "_constrain_into"),
-    "guided": ("_propose_into", "_weight_into", "_predictive_into")}
 _LOCK = threading.RLock()
-_MODULES: dict[tuple[str, type, str, bool], object] = {}
-_FUNCS: dict[tuple[type, str], object] = {}
-_CLASSES: dict[tuple[str, str], type] = {}
-
-
-def register_family(family: str, filename: str, functions: tuple[str, ...]) -> None:
-    """Declare a kernel family: its module file in this folder and the model functions it binds."""
-    FAMILIES[family] = (filename, tuple(functions))
-
-
-def cache_dir() -> Path:
-    return cache.check_cache_dir() / "kernels"
-
-
-def model_class_by_name(module: str, qualname: str) -> type:
-    """A model class from its module and qualified name (a kernel module's footer, a compile
-    helper process)."""
-    obj = _CLASSES.get((module, qualname))
-    if obj is None:  # a process that imports the kernel module directly
-        obj = importlib.import_module(module)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
-    return obj
-
-
-def model_function(module: str, qualname: str, name: str):
-    """The njit-compiled staticmethod ``name`` of a model class (compiled once per process)."""
-    cls = model_class_by_name(module, qualname)
-    key = (cls, name)
-    with _LOCK:
-        if key not in _FUNCS:
-            can_cache = disk_cacheable(cls)
-            func = inspect.getattr_static(cls, name)
-            func = getattr(func, "__func__", func)
-            if can_cache:
-                cache.track_file(inspect.getsourcefile(func))
-            _FUNCS[key] = cache.njit(cache=can_cache, nogil=True)(func)
-        return _FUNCS[key]
-
-
-def scheme_free_function(family: str, module: str, qualname: str, f_tiles: bool, name: str):
-    """Function ``name`` of the any-scheme kernel module of a model class (:data:`SCHEME_FREE`)."""
-    return getattr(kernel_module(model_class_by_name(module, qualname), family, None, f_tiles=f_tiles), name)
-
-
-def disk_cacheable(cls: type) -> bool:
-    """Whether numba can reload this model's compiled code in a later process.
-
-    numba's cache re-imports a function's module by name, so models defined in ``exec``'d code,
-    notebooks or modules that cannot be found again are compiled in memory only.
-    """
-    try:
-        src = inspect.getsourcefile(inspect.getattr_static(cls, "transition").__func__)
-    except TypeError:
-        return False
-    if not src or not src.endswith(".py") or not os.path.exists(src):
-        return False
-    if cls.__module__ == "__main__":
-        return True
-    try:
-        return importlib.util.find_spec(cls.__module__) is not None
-    except (ImportError, ValueError):
-        return False
-
-
-def _source_fingerprint(cls: type, family: str) -> bytes:
-    parts = [cache.package_fingerprint().encode(), family.encode(), str(disk_cacheable(cls)).encode()]
-    mod = sys.modules.get(cls.__module__)
-    try:
-        parts.append(inspect.getsource(mod).encode())
-    except (OSError, TypeError):
-        for name in FAMILIES[family][1]:
-            code = getattr(inspect.getattr_static(cls, name), "__func__", None)
-            if code is not None:
-                code = code.__code__
-                parts.append(code.co_code + repr(code.co_consts).encode())
-    return hashlib.sha256(b"\0".join(parts)).digest()
-
-
-def kernel_module(model_or_cls, family: str = "particle", scheme=None, *, f_tiles: bool | None = None):
-    """The generated kernel module of a model (class or instance) for a filter family.
-
-    ``scheme`` (a :class:`~pfbench.resampling.Scheme`, its name or code) binds the kernel's
-    ``_resample`` to that scheme's kernel only, so the module compiles no other scheme, and binds
-    the family's :data:`SCHEME_FREE` functions to those of the model's module with ``scheme=None``,
-    which binds :func:`~pfbench.backends.numba_resampling.any_scheme` (the scheme chosen at run
-    time). ``f_tiles``: whether the particle kernel hands the model column-major tiles (default:
-    :func:`column_major_tiles` of ``model_or_cls``).
-    """
-    from ..resampling import Scheme
-    from .numba_resampling import kernel_name
-
-    cls = model_or_cls if isinstance(model_or_cls, type) else type(model_or_cls)
-    filename, functions = FAMILIES[family]
-    resampler = kernel_name(scheme)
-    if f_tiles is None:
-        f_tiles = column_major_tiles(model_or_cls)
-    f_tiles = family == "particle" and bool(f_tiles)
-    key = (family, cls, resampler, f_tiles)
-    with _LOCK:
-        if key in _MODULES:
-            return _MODULES[key]
-        # models defined in scripts or notebooks are not importable by name: register the class
-        _CLASSES[(cls.__module__, cls.__qualname__)] = cls
-        digest = _source_fingerprint(cls, family).hex()[:16]
-        safe = "".join(c if c.isalnum() else "_" for c in f"{cls.__module__}_{cls.__qualname__}")
-        name = f"k_{family}_{resampler}{'_f' if f_tiles else ''}_{safe}_{digest}"
-        path = cache_dir() / f"{name}.py"
-        body = (_HERE / filename).read_text()
-        footer = (f"\n\n# ---- generated by pfbench for {cls.__module__}.{cls.__qualname__}: bind the model\n"
-                  "from pfbench.backends.numba_backend import model_function as _model_function\n")
-        for fn in functions:
-            footer += (f"_{fn} = _model_function({cls.__module__!r}, {cls.__qualname__!r}, {fn!r})\n")
-        footer += f"from pfbench.backends.numba_resampling import {resampler} as _resample\n"
-        footer += f"_SCHEME = {-1 if scheme is None else int(Scheme.parse(scheme) if isinstance(scheme, str) else scheme)}\n"
-        footer += f"_F_TILES = {f_tiles}\n"
-        shared = SCHEME_FREE.get(family, ()) if scheme is not None else ()
-        if shared:
-            footer += "from pfbench.backends.numba_backend import scheme_free_function as _scheme_free\n"
-        for fn in shared:
-            footer += f"{fn} = _scheme_free({family!r}, {cls.__module__!r}, {cls.__qualname__!r}, {f_tiles}, {fn!r})\n"
-        text = body + footer
-        if not disk_cacheable(cls):
-            text = text.replace("_njit(nogil=True", "_njit(cache=False, nogil=True")
-        _ensure_file(path, text)
-        modname = f"pfbench_kernel_{name}"
-        spec = importlib.util.spec_from_file_location(modname, path)
-        mod = importlib.util.module_from_spec(spec)
-        # numba's cache rebuilds a kernel's environment by importing its module by name
-        sys.modules[modname] = mod
-        try:  # the text we generated, not whatever the file (or a stale .pyc) holds by now
-            exec(compile(text, str(path), "exec"), mod.__dict__)
-        except BaseException:
-            sys.modules.pop(modname, None)
-            raise
-        _MODULES[key] = mod
-        return mod
-
-
-def column_major_tiles(model_or_cls) -> bool:
-    """Whether the particle kernel hands this model its tiles typed column-major ('F'): a model
-    *instance* with one state and one noise component (its (tile, 1) arrays are both layouts; see
-    ``numba_particle._column_major``). The dimensions are the instance's, which may differ from its
-    class's defaults (``linear_gaussian`` sets them from its matrices), so a class alone gets
-    False, the layout that is right for any shape."""
-    if isinstance(model_or_cls, type):
-        return False
-    return int(getattr(model_or_cls, "n_x", 0)) == 1 and int(getattr(model_or_cls, "n_noise", 0)) == 1
-
-
-def _ensure_file(path: Path, text: str) -> None:
-    """Make ``path`` hold exactly ``text``; rewrite (and warn about) a damaged file."""
-    data = text.encode("utf-8")
-    try:
-        if path.read_bytes() == data:
-            return
-        damage: BaseException | None = None
-    except FileNotFoundError:
-        write_text(path, text)
-        return
-    except OSError as exc:  # a directory in its place, unreadable
-        damage = exc
-    cache.remove_path(path)
-    write_text(path, text)
-    cache.warn_repaired(path, "generated kernel file", damage or "content differs from the generated text")
 
 
 _WARM: set = set()
@@ -281,7 +79,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     if len(brngs) != bounds.shape[0] - 1:
         raise ValueError(f"{len(brngs)} block streams for {x.shape[1]} particles in {bounds.shape[0] - 1} blocks")
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
-    mod = kernel_module(model, "particle", scheme)
+    mod = build("particle", model, scheme)
     work = work_arrays(x, bounds.shape[0] - 1, int(method))
     # in NumPy, as the NumPy backend, straight into the kernel's first particle buffer
     draw_initial(model.kernel_functions()["initial"], p, rng, work[0][0])
@@ -413,7 +211,7 @@ def merge_types(work) -> tuple:
 
 def work_arrays(x, n_blocks: int, method: int) -> tuple:
     """The particle kernel's work arrays for particles ``x`` (G, N_p, n_x) in ``n_blocks`` stream
-    blocks and a :class:`~pfbench.filters.methods.Method` code, in its argument order: the two
+    blocks and a :class:`~pfbench.methods.Method` code, in its argument order: the two
     particle buffers, the log-weights kept between steps (rows of N_p only for a method that may
     skip a resampling, else rows of 0), the float rows of N_p (stratified uniforms, running sum,
     log-weights that pass B turns into weights in place; ASIR adds its two lambda rows), the int
@@ -435,3 +233,120 @@ def work_arrays(x, n_blocks: int, method: int) -> tuple:
     return (np.empty((2, G, n, n_x), x.dtype), np.empty((G, n) if lw_rows else (G, 0)),
             np.empty((5 if asir else 3, n)), np.empty(n + n_blocks * ESTIMATE_TILE, np.int64),
             np.empty((4, n_blocks)), np.empty((2, n_blocks, n_x)), np.empty((2, G), np.int64))
+
+
+# --------------------------------------------------------------------------- the MPF family
+def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
+    """The numba MPF recursion ([Schon2005] Alg. 1; :func:`pfbench.filters.marginalized.run_mpf`)
+    from the prior draws ``xn`` of x^n (None when every state is linear: then one Kalman/EKF
+    recursion, no random numbers and no scheme); ``s``: the model's structure
+    (:func:`pfbench.filters.marginalized.structure`); fills the outputs in place."""
+    u = np.ascontiguousarray(u)  # its rows are then the C arrays _run_calls types
+    if s["d_n"] == 0:
+        mod = build("mpf", model, None)
+        args = [p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"], s["whiten"], s["logdet"], s["m0"],
+                s["P0"], est, cov, ess, inc, degen, 0, 0, 0]
+        args[-3:] = native_addresses(model, "mpf", mod, mod.run_linear, args, _step_calls(s, est, cov))
+        mod.run_linear(*args)
+        return
+    mod = build("mpf", model, scheme)
+    args = [p, rng, s["yw"], u, xn, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
+            s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen,
+            np.zeros(len(mod.RUN_CALLS), np.int64)]
+    args[-1] = np.array(native_addresses(model, "mpf", mod, mod.run, args, _run_calls(mod, p, rng, u, s, est, cov),
+                                         here=_RUN_HERE), np.int64)
+    mod.run(*args)
+
+
+def _step_types(s, est, cov) -> dict:
+    """Name -> (argument types, return type) of the step math both drivers call by address
+    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` in ``pfbench.backends.numba_mpf``):
+    the kernel's own float64 C arrays, and the structure arrays ``s``, a row of ``yw`` and of the
+    outputs ``est``, ``cov`` as they are passed (both drivers pass an int64 C array for x^n's
+    indices, the Kalman driver an empty one)."""
+    import numba
+
+    f64, none = numba.types.float64, numba.types.none
+    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
+    ty = numba.typeof
+    return {"_time_update": ((a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
+            "_kalman_update": ((a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
+                                ty(s["logdet"]), a1, a2, a1, a1, a2, a3), none),
+            "_mixture_moments": ((a1, f64, a1, a1, a2, a2, a3, ty(s["idx_n"]), ty(s["idx_l"]), a2, ty(est[0]),
+                                  ty(cov[0])), none)}
+
+
+def _step_calls(s, est, cov) -> list:
+    """``(name, argument types, return type)`` of the Kalman driver's calls of the step math, made
+    by address (:func:`_step_types`). The driver's compile refuses other types
+    (:func:`pfbench.backends.native_call.caller`)."""
+    steps = _step_types(s, est, cov)
+    return [(name, *steps[name]) for name in ("_time_update", "_kalman_update", "_mixture_moments")]
+
+
+#: the functions of :data:`pfbench.backends.numba_mpf.RUN_CALLS` that a cold start compiles in
+#: this process after the driver, while a helper compiles the others: the model's, the wrappers
+#: that call them and ``_kalman_update``, the split that balances the two cores on Ob5 (measured,
+#: cold ``pfbench run --model ob5 --method mpf``: here the driver 1.9 s and these 2.8 s, in the
+#: helper the rest 4.3 s; both done about 5.1 s after the start)
+_RUN_HERE = ("_normals_into", "_sandwich", "_condition", "_time_update", "_weigh", "_moments", "_mixture_moments")
+
+
+def _run_calls(mod, p, rng, u, s, est, cov) -> list:
+    """``(name, argument types, return type)`` of the functions the numba MPF kernel's driver ``run``
+    calls by address, in the order of ``mod.RUN_CALLS``: the model's ``cl_transition``,
+    ``cl_observation`` and ``cl_constrain`` (return type None: whatever the model returns, known
+    once they are compiled, which is done before their callers), the three wrappers that call them
+    (``_transition_into``, ``_observation_into``, ``_constrain_into``) and the step math. The particle
+    and output arrays are the kernel's own float64 C arrays, ``u[t]`` a row of the C-contiguous
+    ``u``, the structure arrays ``s`` and the rows of ``yw``, ``est`` and ``cov`` as they are passed.
+    The driver's compile refuses other types (:func:`pfbench.backends.native_call.caller`)."""
+    import numba
+
+    f64, i64, none, b = numba.types.float64, numba.types.int64, numba.types.none, numba.types.boolean
+    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
+    ty = numba.typeof
+    pt, ut = ty(p), ty(u[0])
+    calls = {"_cl_transition": ((a2, ut, i64, pt), None),
+             "_cl_observation": ((a2, a2, ut, i64, pt), None),
+             "_cl_constrain": ((a2, pt), None),
+             "_transition_into": ((a2, ut, i64, pt, a2, a3, a2, a3, i64), none),
+             "_observation_into": ((a2, a2, ut, i64, pt, a2, a3, i64), none),
+             "_constrain_into": ((a2, pt, a2, i64), none),
+             "_normals_into": ((ty(rng), a2), none),
+             "_sandwich": ((a3, a3, ty(s["Qn"]), a3, a3), none),
+             "_condition": ((a2, a3, a2, a3, a2, a3, a2, a3, a3, ty(s["T"]), ty(s["corr"]), a3, a1, a2, a2, a2, a3,
+                             a2, a3), none),
+             "_weigh": ((a1, a1, a1, a1), numba.types.Tuple((f64, f64, b))),
+             "_moments": ((a2, a1, f64, a1, a1), f64),
+             **_step_types(s, est, cov)}
+    return [(name, *calls[name]) for name in mod.RUN_CALLS]
+
+
+# --------------------------------------------------------------------------- the guided family
+def run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
+    """The numba guided filter (:func:`pfbench.filters.guided.run_guided`) from the initial particles
+    ``x`` and log-weights ``lw``; ``kind``: ``proposal`` or ``optimal``; fills the outputs in place."""
+    y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types _model_calls gives
+    mod = build("guided", model, scheme)
+    driver = getattr(mod, f"run_{kind}")
+    args = [p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, res, degen, np.zeros(2, np.int64)]
+    args[-1] = np.array(native_addresses(model, "guided", mod, driver, args, _model_calls(kind, p, y, u, x, n_noise)),
+                        np.int64)
+    driver(*args)
+
+
+def _model_calls(kind, p, y, u, x, n_noise) -> list:
+    """``(name, argument types, return type)`` of the two model calls a whole run makes by address
+    (:mod:`pfbench.backends.numba_guided`, "the model's calls"): the proposal, then the proposal's
+    weight (``kind`` "proposal") or the predictive likelihood ("optimal"), typed as the kernel
+    calls them (C-contiguous ``y``, ``u``; ``x`` the particles; float64 noise and weights)."""
+    import numba
+
+    t = numba.types
+    px, xn, row_y, row_u = numba.typeof(x), numba.typeof(np.empty_like(x)), numba.typeof(y[0]), numba.typeof(u[0])
+    pt, f1, f2 = numba.typeof(p), numba.typeof(np.empty(1)), numba.typeof(np.empty((1, n_noise)))
+    calls = [("_propose_into", (px, row_y, row_u, t.int64, f2, pt, xn), t.none)]
+    if kind == "proposal":
+        return calls + [("_weight_into", (xn, px, row_y, row_u, t.int64, pt, f1), t.none)]
+    return calls + [("_predictive_into", (row_y, px, row_u, t.int64, pt, f1), t.none)]

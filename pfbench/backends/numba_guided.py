@@ -33,36 +33,24 @@ the particles of step t. They return ``(loglik increment, N_eff, resampled, dege
 """
 import numpy as _np
 
-from pfbench.backends.cache import njit as _njit
+from pfbench.backends.kernels import binding as _binding
 from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_weights import moments as _moments
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import weigh as _weigh
 
 
-def _initial(rng, n, p):  # pragma: no cover - bound per model in the generated module
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _proposal(x_prev, y, u, t, noise, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _proposal_log_weight(x, x_prev, y, u, t, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _predictive_log_likelihood(y, x_prev, u, t, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by kernel_module
-    raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
-
-
-#: bound by kernel_module: the resampling scheme's code, -1 in the any-scheme module (per-step use
-#: from compiled callers, and the module a compile helper builds the model's calls from)
-_SCHEME = -1
+# ---- what :func:`pfbench.backends.kernels.build` binds for a model and a scheme
+_b = _binding()
+_njit = _b.jit
+_initial = _b.model("initial")
+_proposal = _b.model("proposal")
+_proposal_log_weight = _b.model("proposal_log_weight")
+_predictive_log_likelihood = _b.model("predictive_log_likelihood")
+_resample = _b.resample
+#: the resampling scheme's code, -1 in the any-scheme module (per-step use from compiled callers,
+#: and the module a compile helper builds the model's calls from)
+_SCHEME = _b.scheme
 _call6 = _caller(6)
 _call7 = _caller(7)
 
@@ -92,6 +80,11 @@ def _weight_into(xn, x, y, u, t, p, ll):
 def _predictive_into(y, x, u, t, p, ll):
     """ll = the model's ``predictive_log_likelihood(y, x, u, t, p)`` in float64."""
     ll[:] = _predictive_log_likelihood(y, x, u, t, p)
+
+
+_propose_into = _b.shared("_propose_into", _propose_into)
+_weight_into = _b.shared("_weight_into", _weight_into)
+_predictive_into = _b.shared("_predictive_into", _predictive_into)
 
 
 @_njit(nogil=True, inline="always")

@@ -25,7 +25,7 @@ particle weighting.
 """
 import numpy as _np
 
-from pfbench.backends.cache import njit as _njit
+from pfbench.backends.kernels import binding as _binding
 from pfbench.backends.numba_weights import moments as _moments
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.backends.numba_weights import weigh as _weigh
@@ -58,20 +58,13 @@ RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_
  _A_MIXTURE_MOMENTS) = range(len(RUN_CALLS))
 
 
-def _cl_transition(xn, u, t, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _cl_observation(xn, xl, u, t, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _cl_constrain(xn, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by kernel_module
-    raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
+# ---- what :func:`pfbench.backends.kernels.build` binds for a model and a scheme
+_b = _binding()
+_njit = _b.jit
+_cl_transition = _b.model("cl_transition")
+_cl_observation = _b.model("cl_observation")
+_cl_constrain = _b.model("cl_constrain")
+_resample = _b.resample
 
 
 # --------------------------------------------------------------------------- the model's calls
@@ -106,6 +99,11 @@ def _observation_into(xn, xl, u, t, p, h, C, model_address):
 def _constrain_into(xn, p, out, model_address):
     """``cl_constrain(xn, p)`` into ``out``."""
     _copy_into(_call2(_cl_constrain, model_address, xn, p), out)
+
+
+_transition_into = _b.shared("_transition_into", _transition_into)
+_observation_into = _b.shared("_observation_into", _observation_into)
+_constrain_into = _b.shared("_constrain_into", _constrain_into)
 
 
 # --------------------------------------------------------------------------- entry points

@@ -106,7 +106,8 @@ from numba.core import types as _types
 from numba.core.imputils import impl_ret_borrowed as _impl_ret_borrowed
 
 from pfbench.backends import pcg64 as _pcg64
-from pfbench.backends.cache import njit as _njit
+from pfbench.backends.kernels import binding as _binding
+from pfbench.backends.kernels import twin as _twin
 from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.backends.numba_resampling import gather as _gather
@@ -116,7 +117,7 @@ from pfbench.backends.numba_weights import block_moments as _block_moments
 from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
-from pfbench.filters.methods import Method as _Method
+from pfbench.methods import Method as _Method
 from pfbench.resampling import Scheme as _Scheme
 
 _ASIR = int(_Method.ASIR)
@@ -129,11 +130,6 @@ _STRATIFIED = int(_Scheme.STRATIFIED)
 #: on Ob1, 1 thread, N_p = 1000, marginal cost of 2000 steps, 12.2 ns per particle-step with tiles
 #: of 512, 11.8-11.9 with 1024; 2048 and 4096 within the noise of 1024 (8 KB per float64 column)
 _TILE = 1024
-#: resampling scheme code bound by kernel_module (-1: chosen at run time through ``_resample``)
-_SCHEME = -1
-#: bound by kernel_module: True when the model has one state and one noise component, whose tiles
-#: are handed to the model typed column-major (:func:`_column_major`)
-_F_TILES = False
 _prange = _numba.prange
 #: pass A called through its address (:mod:`pfbench.backends.native_call`)
 _call_a = _caller(17)
@@ -141,17 +137,18 @@ _call_a = _caller(17)
 _call_b = _caller(12)
 _call_c = _caller(15)
 
-
-def _transition(x, u, t, noise, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _log_likelihood(y, x, u, t, p):  # pragma: no cover - bound per model
-    raise NotImplementedError("bound per model by pfbench.backends.numba_backend.kernel_module")
-
-
-def _resample(code, w, cdf, rng, idx):  # pragma: no cover - bound per run by kernel_module
-    raise NotImplementedError("bound per scheme by pfbench.backends.numba_backend.kernel_module")
+# ---- what :func:`pfbench.backends.kernels.build` binds for a model and a scheme
+_b = _binding()
+_njit = _b.jit
+_transition = _b.model("transition")
+_log_likelihood = _b.model("log_likelihood")
+#: the scheme's resampling kernel (``any_scheme`` when the scheme is chosen at run time)
+_resample = _b.resample
+#: the resampling scheme code (-1: chosen at run time through ``_resample``)
+_SCHEME = _b.scheme
+#: True when the model has one state and one noise component, whose tiles are handed to the
+#: model typed column-major (:func:`_column_major`)
+_F_TILES = _b.f_tiles
 
 
 def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the overload below
@@ -357,6 +354,9 @@ def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam
     return m
 
 
+_pass_a = _b.shared("_pass_a", _pass_a)  # compiled once per model, for every scheme
+
+
 @_register_jitable
 def _moments(bsx, bsxx, nb, total, xs, est, var, g, t):
     """est[g, t] and var[g, t] from the per-block sums of w x and w (x - x_0)^2 (x_0 = ``xs[0]``,
@@ -414,7 +414,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w (G, M, n): the weighted
     particles of every step (before resampling) when their second dimension
     is M; pass (G, 0, ...) arrays to store nothing. method: a
-    :class:`~pfbench.filters.methods.Method` code of the particle family (MultiPDF runs bootstrap
+    :class:`~pfbench.methods.Method` code of the particle family (MultiPDF runs bootstrap
     sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
     count. xs ... gstate: work arrays (:func:`pfbench.backends.numba_backend.work_arrays`), allocated
     by the caller because every array constructor compiled here is another 0.1 s of a cold start.
@@ -555,17 +555,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                     xb[i, c] = fb[i, c]
 
 
-def _named(func, name):
-    """A copy of ``func`` under another name (its own dispatcher and cache entry)."""
-    import types
-
-    f = types.FunctionType(func.__code__, func.__globals__, name, func.__defaults__, func.__closure__)
-    f.__qualname__ = name
-    f.__doc__ = func.__doc__
-    return f
-
-
 #: the serial compilation (MultiPDF thread pools, small N_p, ``n_threads=1``)
-run_group = _njit(nogil=True)(_named(_run_group, "run_group"))
+run_group = _njit(nogil=True)(_twin(_run_group, "run_group"))
 #: the same function with its block loops over all numba threads (compiled on first use)
-run_group_parallel = _njit(nogil=True, parallel=True)(_named(_run_group, "run_group_parallel"))
+run_group_parallel = _njit(nogil=True, parallel=True)(_twin(_run_group, "run_group_parallel"))

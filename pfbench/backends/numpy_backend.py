@@ -21,7 +21,7 @@ N_p, never on how many threads run the numba kernel.
 The numba backend (:mod:`pfbench.backends.numba_particle`) follows the same order with the same
 operations, which is what makes the two backends agree under common random numbers.
 
-Methods (:class:`pfbench.filters.methods.Method` codes, shared with the numba kernel): bootstrap
+Methods (:class:`pfbench.methods.Method` codes, shared with the numba kernel): bootstrap
 (resample every step, [Embedded] Alg. 1; [MultiPDF] Alg. 1), SIR (resample when N_eff <
 threshold, [MultiPDF] eq. 8; [Thesis] Alg. 3), SIS (never resample, [Thesis] Alg. 2), ASIR
 (auxiliary SIR, [Thesis] Alg. 6: first-stage weights p(y_t | mu_t^i) at mu_t^i = f(x_{t-1}^i)
@@ -36,10 +36,10 @@ import numpy as np
 
 from .. import resampling
 from .fastexp import exp_array as exp_weights
-from ..filters.methods import Estimate, Method
+from ..methods import Estimate, Method
 
 
-def _clean(ll) -> np.ndarray:
+def valid_log_likelihood(ll) -> np.ndarray:
     """Log-likelihoods as float64 with NaN and +inf replaced by -inf (invalid -> weight 0)."""
     ll = np.array(ll, dtype=np.float64, copy=True).reshape(-1)
     ll[~(ll == ll) | (ll == np.inf)] = -np.inf
@@ -183,7 +183,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             first = 0.0
             if method == Method.ASIR:  # first stage
                 mu = transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p)
-                lam_all = _clean(log_likelihood(yt, mu, ut, t, p))
+                lam_all = valid_log_likelihood(log_likelihood(yt, mu, ut, t, p))
                 wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
                 if deg1:
@@ -196,9 +196,9 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
             noise = np.concatenate([r.standard_normal((sl.stop - sl.start, n_noise), dtype=ptype)
                                     for r, sl in zip(brngs, blocks)])
             xg[:] = transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p)
-            ll = _clean(log_likelihood(yt, xg.astype(np.float64), ut, t, p))
+            ll = valid_log_likelihood(log_likelihood(yt, xg.astype(np.float64), ut, t, p))
             if method == Method.ASIR:
-                ll = _clean(ll - lam)
+                ll = valid_log_likelihood(ll - lam)
             wu, cdf, m, total, deg = weigh(lw[g], ll, blocks)
             if store:
                 hist_x[g, t] = xg

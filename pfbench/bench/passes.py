@@ -160,12 +160,13 @@ def _part_timers(n: int, m: int, dtype: str) -> tuple[dict, str]:
     step with ``dtype`` particles: the parts run on that filter's own particles and weights."""
     from .. import models
     from ..backends import numba_backend
+    from ..backends.kernels import build
     from ..filters import run_filter
 
     model = models.get("ob1")
     traj = model.simulate(m, seed=1)
     p = model.params()
-    mod = numba_backend.kernel_module(model, "particle", "systematic")
+    mod = build("particle", model, "systematic")
     normals, model_fn, transition_c, transition_f, convert, whole_a, exps, whole_b, resample = _harnesses(mod)
     run = run_filter(model, traj.y, None, method="bootstrap", n_particles=n, seed=0, n_threads=1,
                      store_particles=True, dtype=dtype)

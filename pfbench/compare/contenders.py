@@ -162,7 +162,7 @@ class Contender:
 
 class PfbenchContender(Contender):
     def __init__(self, name, spec, method, options):
-        from ..filters.methods import Method
+        from ..methods import Method
         from ..options import check_known, typed
 
         super().__init__(name, spec, "pfbench", {})
@@ -170,7 +170,7 @@ class PfbenchContender(Contender):
         check_known(options, PFBENCH_KEYS, "a pfbench: contender option", flag=f"--contender {spec}:")
         self.options = {k: typed(v, PFBENCH_KEYS[k], f"--contender {spec}: {k}") for k, v in options.items()}
         if "backend" in self.options:
-            from ..filters.inputs import check_backend
+            from ..methods import check_backend
 
             check_backend(self.options["backend"])
 

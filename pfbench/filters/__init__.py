@@ -11,7 +11,7 @@
 
 How the algorithms execute (NumPy reference, numba kernels) lives in :mod:`pfbench.backends`.
 """
-from .methods import METHODS, Method
+from ..methods import METHODS, Method
 from .result import FilterResult
 from .run import run_filter
 

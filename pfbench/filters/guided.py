@@ -57,17 +57,14 @@ from numba.extending import overload, register_jitable
 
 from .. import resampling as _resampling
 from ..backends import numba_backend as _numba_backend
-from ..backends.numpy_backend import _clean, normalised_log_weights, weigh
+from ..backends.kernels import build
+from ..backends.numpy_backend import valid_log_likelihood, normalised_log_weights, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI, StateSpaceModel
 from ..resampling import Scheme
-from .inputs import check_backend, check_dtype, check_inputs, ess_count, seed_sequence
-from .methods import Method
+from ..methods import Method, check_backend, check_dtype
+from .inputs import check_inputs, ess_count, seed_sequence
 from .result import FilterResult
-
-_numba_backend.register_family(
-    "guided", "numba_guided.py",
-    ("initial", "proposal", "proposal_log_weight", "predictive_log_likelihood"))
 
 #: model functions each kind of proposal needs (besides ``initial``)
 KINDS = {"proposal": ("proposal", "proposal_log_weight"),
@@ -259,7 +256,7 @@ def numpy_step_proposal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold,
     noise = rng.standard_normal((x.shape[0], n_noise))
     xn = np.empty_like(x)
     xn[:] = fns["proposal"](x, y, u, t, noise, p)
-    ll = _clean(fns["proposal_log_weight"](xn, x, y, u, t, p))
+    ll = valid_log_likelihood(fns["proposal_log_weight"](xn, x, y, u, t, p))
     x[:] = xn
     return _reweigh(x, lw, ll, scheme, threshold, rng, mean, var)[:4]
 
@@ -267,7 +264,7 @@ def numpy_step_proposal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold,
 def numpy_step_optimal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
     """One fully adapted step with the locally optimal proposal (see the module docstring); NumPy
     twin of ``numba_guided.step_optimal``. Returns (increment, N_eff, resampled, degenerate)."""
-    ll = _clean(fns["predictive_log_likelihood"](y, x, u, t, p))
+    ll = valid_log_likelihood(fns["predictive_log_likelihood"](y, x, u, t, p))
     inc, e, do, deg, wu, total = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var)
     noise = rng.standard_normal((x.shape[0], n_noise))
     xn = np.empty_like(x)
@@ -300,7 +297,7 @@ def step_functions(model_cls) -> StepFunctions:
     time (e.g. inside a closed loop).
 
     Called from Python they run the NumPy reference; called from a numba-compiled function they
-    compile to the model's guided kernel (:func:`pfbench.backends.numba_backend.kernel_module`,
+    compile to the model's guided kernel (:func:`pfbench.backends.kernels.build`,
     family ``"guided"``), so one loop body serves both backends. Reference them as module globals
     of the compiled caller, and call this at import of the caller's module: it imports the kernel
     module, which numba needs (by name) to load the caller from its disk cache in a new process.
@@ -311,7 +308,7 @@ def step_functions(model_cls) -> StepFunctions:
     kind = proposal_kind(cls)
     fns = _functions(cls)
     np_step = _NUMPY_STEPS[kind]
-    module = _numba_backend.kernel_module(cls, "guided")
+    module = build("guided", cls)
     kernel_init, kernel_step = module.init, getattr(module, f"step_{kind}")
 
     def init(p, rng, x, lw):
@@ -351,31 +348,10 @@ _WARM: set = set()
 
 
 def _run_numba(model, p, rng, y, u, x, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
-    y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types _model_calls gives
     lw = np.empty(x.shape[0])
     numpy_init(_functions(type(model)), p, rng, x, lw)  # in NumPy, as the reference: the kernel continues
-    mod = _numba_backend.kernel_module(model, "guided", scheme)
-    driver = getattr(mod, f"run_{kind}")
-    args = [p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, res, degen, np.zeros(2, np.int64)]
-    args[-1] = np.array(_numba_backend.native_addresses(model, "guided", mod, driver, args,
-                                                        _model_calls(kind, p, y, u, x, n_noise)), np.int64)
-    driver(*args)
-
-
-def _model_calls(kind, p, y, u, x, n_noise) -> list:
-    """``(name, argument types, return type)`` of the two model calls a whole run makes by address
-    (:mod:`pfbench.backends.numba_guided`, "the model's calls"): the proposal, then the proposal's
-    weight (``kind`` "proposal") or the predictive likelihood ("optimal"), typed as the kernel
-    calls them (C-contiguous ``y``, ``u``; ``x`` the particles; float64 noise and weights)."""
-    import numba
-
-    t = numba.types
-    px, xn, row_y, row_u = numba.typeof(x), numba.typeof(np.empty_like(x)), numba.typeof(y[0]), numba.typeof(u[0])
-    pt, f1, f2 = numba.typeof(p), numba.typeof(np.empty(1)), numba.typeof(np.empty((1, n_noise)))
-    calls = [("_propose_into", (px, row_y, row_u, t.int64, f2, pt, xn), t.none)]
-    if kind == "proposal":
-        return calls + [("_weight_into", (xn, px, row_y, row_u, t.int64, pt, f1), t.none)]
-    return calls + [("_predictive_into", (row_y, px, row_u, t.int64, pt, f1), t.none)]
+    _numba_backend.run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est, var, ess, inc,
+                              res, degen)
 
 
 def _warm_up(model, p, y, u, x, kind, n_noise, scheme) -> None:

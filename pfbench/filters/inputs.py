@@ -1,17 +1,10 @@
-"""Validation shared by every filter entry point: measurements, inputs, seeds, backends."""
+"""Validation shared by every filter entry point: measurements, inputs, seeds, thresholds."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import InputError
 from ..models.base import StateSpaceModel
-
-BACKENDS = ("numpy", "numba", "cupy")
-#: the backends that run :mod:`pfbench.backends.array_backend`, with their array namespace;
-#: ``xp-numpy`` is the ``cupy`` backend's code on NumPy (how the CPU tests cover it)
-ARRAY_BACKENDS = {"cupy": "cupy", "xp-numpy": "numpy"}
-DTYPES = ("float64", "float32")
-
 
 def check_inputs(model, y, u):
     """``y`` as a C-contiguous float64 (M, n_y) array and ``u`` as (M, n_u), or an InputError.
@@ -35,18 +28,6 @@ def check_inputs(model, y, u):
         t = int(np.argmax(~np.isfinite(u).all(axis=1)))
         raise InputError(f"input u at step {t} is not finite")
     return np.ascontiguousarray(y), np.ascontiguousarray(u)
-
-
-def check_backend(backend: str) -> str:
-    if backend not in BACKENDS and backend not in ARRAY_BACKENDS:
-        raise InputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
-    return backend
-
-
-def check_dtype(dtype: str) -> str:
-    if dtype not in DTYPES:
-        raise InputError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
-    return dtype
 
 
 def seed_sequence(seed) -> np.random.SeedSequence:

@@ -57,11 +57,12 @@ import time
 import numpy as np
 
 from .. import resampling as _resampling
-from ..backends.numpy_backend import _clean, weigh
+from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
 from ..resampling import Scheme
-from .inputs import check_backend, check_dtype, check_inputs, seed_sequence
+from ..methods import check_backend, check_dtype
+from .inputs import check_inputs, seed_sequence
 from .result import FilterResult
 
 _CL_FUNCTIONS = ("cl_transition", "cl_observation", "cl_noise", "cl_prior")
@@ -395,7 +396,7 @@ def _run_numpy(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> Non
         xn = cl_constrain(xn, p)
         h, C = cl_observation(xn, m_pred, u[t], t, p)
         ll, m, P = kalman_update(h, C, m_pred, P_pred, yw[t], s["W"], s["rvar"], s["whiten"], s["logdet"])
-        wu, _, mx, total, deg = weigh(lw, _clean(ll))
+        wu, _, mx, total, deg = weigh(lw, valid_log_likelihood(ll))
         degen[t] = deg
         inc[t] = -np.inf if deg else mx + np.log(total)
         wn = wu / total
@@ -415,98 +416,11 @@ def _initial_xn(model, rng, n: int, p, idx_n) -> np.ndarray:
 _WARM: set = set()
 
 
-def _numba_module(model, scheme):
+def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
     from ..backends import numba_backend
 
-    numba_backend.register_family("mpf", "numba_mpf.py",
-                                  ("cl_transition", "cl_observation", "cl_constrain"))
-    return numba_backend.kernel_module(model, "mpf", scheme)
-
-
-def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
-    from ..backends.numba_backend import native_addresses
-
-    u = np.ascontiguousarray(u)  # its rows are then the C arrays _model_calls types
-    if s["d_n"] == 0:  # one Kalman/EKF recursion: no random numbers, no resampling scheme
-        mod = _numba_module(model, None)
-        args = [p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"], s["whiten"], s["logdet"], s["m0"],
-                s["P0"], est, cov, ess, inc, degen, 0, 0, 0]
-        args[-3:] = native_addresses(model, "mpf", mod, mod.run_linear, args, _step_calls(s, est, cov))
-        mod.run_linear(*args)
-        return
-    mod = _numba_module(model, scheme)
-    xn = _initial_xn(model, rng, n, p, s["idx_n"])  # in NumPy, as the reference: the kernel continues
-    args = [p, rng, s["yw"], u, xn, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
-            s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen,
-            np.zeros(len(mod.RUN_CALLS), np.int64)]
-    args[-1] = np.array(native_addresses(model, "mpf", mod, mod.run, args, _run_calls(mod, p, rng, u, s, est, cov),
-                                         here=_RUN_HERE), np.int64)
-    mod.run(*args)
-
-
-def _step_types(s, est, cov) -> dict:
-    """Name -> (argument types, return type) of the step math both drivers call by address
-    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` in ``pfbench.backends.numba_mpf``):
-    the kernel's own float64 C arrays, and the structure arrays ``s``, a row of ``yw`` and of the
-    outputs ``est``, ``cov`` as they are passed (both drivers pass an int64 C array for x^n's
-    indices, the Kalman driver an empty one)."""
-    import numba
-
-    f64, none = numba.types.float64, numba.types.none
-    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
-    ty = numba.typeof
-    return {"_time_update": ((a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
-            "_kalman_update": ((a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
-                                ty(s["logdet"]), a1, a2, a1, a1, a2, a3), none),
-            "_mixture_moments": ((a1, f64, a1, a1, a2, a2, a3, ty(s["idx_n"]), ty(s["idx_l"]), a2, ty(est[0]),
-                                  ty(cov[0])), none)}
-
-
-def _step_calls(s, est, cov) -> list:
-    """``(name, argument types, return type)`` of the Kalman driver's calls of the step math, made
-    by address (:func:`_step_types`). The driver's compile refuses other types
-    (:func:`pfbench.backends.native_call.caller`)."""
-    steps = _step_types(s, est, cov)
-    return [(name, *steps[name]) for name in ("_time_update", "_kalman_update", "_mixture_moments")]
-
-
-#: the functions of :data:`pfbench.backends.numba_mpf.RUN_CALLS` that a cold start compiles in
-#: this process after the driver, while a helper compiles the others: the model's, the wrappers
-#: that call them and ``_kalman_update``, the split that balances the two cores on Ob5 (measured,
-#: cold ``pfbench run --model ob5 --method mpf``: here the driver 1.9 s and these 2.8 s, in the
-#: helper the rest 4.3 s; both done about 5.1 s after the start)
-_RUN_HERE = ("_normals_into", "_sandwich", "_condition", "_time_update", "_weigh", "_moments", "_mixture_moments")
-
-
-def _run_calls(mod, p, rng, u, s, est, cov) -> list:
-    """``(name, argument types, return type)`` of the functions the numba MPF kernel's driver ``run``
-    calls by address, in the order of ``mod.RUN_CALLS``: the model's ``cl_transition``,
-    ``cl_observation`` and ``cl_constrain`` (return type None: whatever the model returns, known
-    once they are compiled, which is done before their callers), the three wrappers that call them
-    (``_transition_into``, ``_observation_into``, ``_constrain_into``) and the step math. The particle
-    and output arrays are the kernel's own float64 C arrays, ``u[t]`` a row of the C-contiguous
-    ``u``, the structure arrays ``s`` and the rows of ``yw``, ``est`` and ``cov`` as they are passed.
-    The driver's compile refuses other types (:func:`pfbench.backends.native_call.caller`)."""
-    import numba
-
-    f64, i64, none, b = numba.types.float64, numba.types.int64, numba.types.none, numba.types.boolean
-    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
-    ty = numba.typeof
-    pt, ut = ty(p), ty(u[0])
-    calls = {"_cl_transition": ((a2, ut, i64, pt), None),
-             "_cl_observation": ((a2, a2, ut, i64, pt), None),
-             "_cl_constrain": ((a2, pt), None),
-             "_transition_into": ((a2, ut, i64, pt, a2, a3, a2, a3, i64), none),
-             "_observation_into": ((a2, a2, ut, i64, pt, a2, a3, i64), none),
-             "_constrain_into": ((a2, pt, a2, i64), none),
-             "_normals_into": ((ty(rng), a2), none),
-             "_sandwich": ((a3, a3, ty(s["Qn"]), a3, a3), none),
-             "_condition": ((a2, a3, a2, a3, a2, a3, a2, a3, a3, ty(s["T"]), ty(s["corr"]), a3, a1, a2, a2, a2, a3,
-                             a2, a3), none),
-             "_weigh": ((a1, a1, a1, a1), numba.types.Tuple((f64, f64, b))),
-             "_moments": ((a2, a1, f64, a1, a1), f64),
-             **_step_types(s, est, cov)}
-    return [(name, *calls[name]) for name in mod.RUN_CALLS]
+    xn = _initial_xn(model, rng, n, p, s["idx_n"]) if s["d_n"] else None  # in NumPy, as the reference
+    numba_backend.run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen)
 
 
 def _warm_up(model, p, n, s, u, scheme) -> None:

@@ -43,8 +43,8 @@ from ..backends.numpy_backend import BLOCK, block_streams
 from ..errors import InputError
 from ..procs import free_cores
 from ..resampling import Scheme
-from .inputs import ARRAY_BACKENDS, check_backend, check_dtype, ess_count, seed_sequence
-from .methods import Estimate, Method
+from ..methods import ARRAY_BACKENDS, Estimate, Method, check_backend, check_dtype
+from .inputs import ess_count, seed_sequence
 from .result import FilterResult, mixture_loglik_increments, total_variance
 
 
@@ -131,7 +131,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     :class:`Method` (MultiPDF sub-filters run as bootstrap), ``resampling`` a :class:`Scheme` and
     ``ess_threshold`` a particle count. ``store_particles`` adds ``particles`` (N_f, M, n, n_x) and
     ``weights`` (N_f, M, n), the normalised weighted particles of every step before resampling.
-    ``estimate``: ``pre`` or ``post`` (an :class:`~pfbench.filters.methods.Estimate` name, see
+    ``estimate``: ``pre`` or ``post`` (an :class:`~pfbench.methods.Estimate` name, see
     :func:`pfbench.run_filter`); ``post`` is handed to the backend's ``run_group`` as
     ``estimate="post"`` (``pre`` is not passed: the backends' default).
     ``block``: the largest stream block (default :data:`pfbench.backends.numpy_backend.BLOCK`;

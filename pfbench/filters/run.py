@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..models.contract import check_model, named_model_errors, needs_of
-from .inputs import ARRAY_BACKENDS, check_inputs
-from .methods import Estimate, Method
+from ..methods import ARRAY_BACKENDS, Estimate, Method
+from .inputs import check_inputs
 from .result import FilterResult
 
 
@@ -29,7 +29,7 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
 
     Parameters
     ----------
-    method : a :class:`~pfbench.filters.methods.Method` name: ``bootstrap`` ([Embedded] Alg. 1),
+    method : a :class:`~pfbench.methods.Method` name: ``bootstrap`` ([Embedded] Alg. 1),
         ``sir`` (resample when N_eff < ``ess_threshold`` N_p; [MultiPDF] eq. 8), ``sis``,
         ``asir`` ([Thesis] Alg. 6), ``multipdf`` ([MultiPDF] Alg. 2), ``mpf`` (marginalized PF on
         the model's declared linear-Gaussian substructure, [Schon2005]), ``guided`` (the model's
@@ -58,7 +58,7 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     store_particles : particle family only: keep the weighted particles of every step (before
         resampling) in ``extras["particles"]`` (N_f, M, N, n_x) and ``extras["weights"]`` (N_f, M, N).
     estimate : where a step's point estimate (``estimates``, ``variances``) is taken (an
-        :class:`~pfbench.filters.methods.Estimate` name; the particle methods record it in
+        :class:`~pfbench.methods.Estimate` name; the particle methods record it in
         ``info["estimate"]``).
         ``pre`` (default): the weighted mean and variance of the weighted particles, before the
         step's resampling. ``post``: the unweighted mean and variance of the particles after the

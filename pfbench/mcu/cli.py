@@ -6,7 +6,7 @@ import math
 import click
 
 from ..clitypes import complete_models
-from ..filters.methods import PARTICLE_METHODS
+from ..methods import PARTICLE_METHODS
 from ..io import to_json
 from ..options import parse_key_values
 from ..resampling import SCHEMES

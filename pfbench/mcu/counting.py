@@ -492,7 +492,7 @@ def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: 
                  resampling: str, ess_threshold, seed: int, compiled: bool = False) -> dict[str, int]:
     from ..backends import numpy_backend
     from ..filters.inputs import ess_count
-    from ..filters.methods import Method
+    from ..methods import Method
     from ..filters.particle import split_particles
     from ..resampling import Scheme
 
@@ -561,7 +561,7 @@ def _scalar_t(t):
 
 
 def _validate(model, n_steps, n_particles, method, n_filters, resampling):
-    from ..filters.methods import PARTICLE_METHODS, Method
+    from ..methods import PARTICLE_METHODS, Method
     from ..resampling import Scheme
 
     if Method.parse(method).family != "particle":

@@ -15,8 +15,7 @@ import click
 
 from ..errors import DataError, InputError
 from ..clitypes import OUT_FILE, ChoiceList, complete_models
-from ..filters.inputs import BACKENDS
-from ..filters.methods import ESTIMATES, METHODS
+from ..methods import BACKENDS, ESTIMATES, METHODS
 from ..options import check_known, comma_list, parse_key_values, typed
 
 

@@ -36,8 +36,7 @@ import time
 import numpy as np
 
 from ..errors import InputError
-from ..filters.inputs import check_backend
-from ..filters.methods import METHODS, Estimate, Method
+from ..methods import METHODS, Estimate, Method, check_backend
 
 #: the method's part of a filter seed's spawn key. Never change an entry: it would change every
 #: stored sweep's numbers. New methods take new numbers.
@@ -95,7 +94,7 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
         raise InputError(f"--seed must be an integer >= 0 (a root seed of numpy's SeedSequence), got {seed!r}")
     check_backend(backend)
     estimate = Estimate.parse(estimate).label
-    from ..filters.inputs import ARRAY_BACKENDS
+    from ..methods import ARRAY_BACKENDS
 
     if backend in ARRAY_BACKENDS:  # before any work: the methods it runs, and a GPU for cupy
         from ..backends import array_backend, cupy_backend
@@ -199,7 +198,7 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
 
-    from ..filters.inputs import ARRAY_BACKENDS
+    from ..methods import ARRAY_BACKENDS
 
     m = Method.parse(method)
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)

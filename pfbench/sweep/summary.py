@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..filters.methods import Method
+from ..methods import Method
 from ..metrics import mean_interval
 
 #: legend labels; other methods show their name

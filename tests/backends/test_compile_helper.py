@@ -4,15 +4,12 @@ import json
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
 
 from pfbench.backends import compile_helper
 
-#: what a process running one Python thread starts as its helper
-FORKED = "_Forked" if sys.platform.startswith("linux") else "Popen"
 
 SCRIPT = r"""
 import json, re, sys
@@ -20,6 +17,7 @@ import numpy as np
 from pfbench.backends import compile_helper, numba_backend
 from pfbench.filters.run import run_filter
 from pfbench.models import get
+from pfbench.backends.kernels import build
 
 started = []
 kinds = []
@@ -41,7 +39,7 @@ for name, scheme in (("ob1", "systematic"), ("ob2", "systematic"), ("ob2", "stra
     m = get(name)
     y = m.simulate(15, seed=1).y
     r = run_filter(m, y, n_particles=64, seed=3, resampling=scheme, n_threads=1)
-    mod = numba_backend.kernel_module(m, "particle", scheme)
+    mod = build("particle", m, scheme)
     a, d = mod._pass_a.stats, mod.run_group.stats
     out[f"{name}/{scheme}"] = {"pass_a": [sum(a.cache_hits.values()), sum(a.cache_misses.values())],
                                "driver_misses": sum(d.cache_misses.values()),
@@ -49,7 +47,7 @@ for name, scheme in (("ob1", "systematic"), ("ob2", "systematic"), ("ob2", "stra
 m = get("linear_gaussian")
 tr = m.simulate(15, seed=1)
 r = run_filter(m, tr.y, tr.u, method="kalman")
-mod = numba_backend.kernel_module(m, "mpf", None)
+mod = build("mpf", m, None)
 out["kalman"] = {"step_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
                                 for f in (mod._time_update, mod._kalman_update, mod._mixture_moments)],
                  "driver_misses": sum(mod.run_linear.stats.cache_misses.values()),
@@ -59,7 +57,7 @@ out["kalman"] = {"step_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.c
 m = get("ob5")
 tr = m.simulate(15, seed=1)
 r = run_filter(m, tr.y, tr.u, method="mpf", n_particles=64, seed=3)
-mod = numba_backend.kernel_module(m, "mpf", "systematic")
+mod = build("mpf", m, "systematic")
 out["mpf"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
                               for f in (mod._cl_transition, mod._cl_observation, mod._cl_constrain,
                                         mod._transition_into, mod._observation_into, mod._constrain_into)],
@@ -69,7 +67,7 @@ out["mpf"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cac
 m = get("pmsm_reduced")
 tr = m.simulate(15, seed=1)
 r = run_filter(m, tr.y, tr.u, method="guided", n_particles=64, seed=3)
-mod = numba_backend.kernel_module(m, "guided", None)
+mod = build("guided", m, None)
 out["guided"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
                                  for f in (mod._propose_into, mod._predictive_into)],
                  "started": list(started), "est": r.estimates.tolist()}
@@ -114,7 +112,7 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     from pfbench.models import get
 
     got = _run_cold(SCRIPT, tmp_path)
-    assert got.pop("kinds") == [FORKED] * 5  # a process running one thread forks its helpers (Linux)
+    assert got.pop("kinds") == ["Popen"] * 5
     ob1, ob2, ob2s = got["ob1/systematic"], got["ob2/systematic"], got["ob2/stratified"]
     assert ob1["pass_a"] == [0, 1] and ob1["driver_misses"] == 1
     assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
@@ -153,52 +151,6 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
         np.testing.assert_array_equal(np.asarray(res["est"]), want)
 
 
-SPAWN_SCRIPT = r"""
-import json, threading
-from pfbench.backends import compile_helper, numba_backend
-from pfbench.filters.run import run_filter
-from pfbench.models import get
-
-threading.Thread(target=threading.Event().wait, daemon=True).start()  # a second thread: no fork
-kinds = []
-real_start = compile_helper.start
-
-
-def recording_start(*args):
-    helper = real_start(*args)
-    kinds.append(type(helper.proc).__name__ if helper else None)
-    return helper
-
-
-compile_helper.start = recording_start
-m = get("linear_gaussian")
-tr = m.simulate(15, seed=1)
-r = run_filter(m, tr.y, tr.u, method="kalman")
-mod = numba_backend.kernel_module(m, "mpf", None)
-print(json.dumps({"kinds": kinds, "est": r.estimates.tolist(),
-                  "step_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
-                                 for f in (mod._time_update, mod._kalman_update, mod._mixture_moments)]}))
-"""
-
-
-@pytest.mark.skipif(compile_helper.usable_cores() < 2, reason="a compile helper needs a second core")
-def test_a_process_running_threads_starts_a_new_interpreter_as_its_helper(tmp_path):
-    """With a second thread running, forking is not safe (a lock that thread holds would stay
-    locked in the child), so the helper is a new interpreter that imports the model itself; it
-    compiles the Kalman step math into the cache, this process loads it (hits, no misses) and gets
-    the estimates of a run in this (test) process. Catches: a fork from a threaded process, and a
-    spawned helper that no longer works."""
-    from pfbench.filters.run import run_filter
-    from pfbench.models import get
-
-    got = _run_cold(SPAWN_SCRIPT, tmp_path)
-    assert got["kinds"] == ["Popen"]
-    assert got["step_calls"] == [[1, 0]] * 3
-    m = get("linear_gaussian")
-    tr = m.simulate(15, seed=1)
-    np.testing.assert_array_equal(np.asarray(got["est"]), run_filter(m, tr.y, tr.u, method="kalman").estimates)
-
-
 def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
     """Catches: a helper that competes with this process for its only core, or one that ignores
     ``PFBENCH_COMPILE_HELPER=0``."""
@@ -212,23 +164,18 @@ def test_no_helper_on_one_core_or_when_switched_off(monkeypatch):
     assert not compile_helper.enabled()
 
 
-@pytest.mark.parametrize("threads", [1, 2])
-def test_a_helper_that_cannot_run_reports_failure(monkeypatch, threads):
-    """A helper whose model module does not exist exits non-zero, forked (one thread running) or
-    spawned (two), and :meth:`Helper.finish` says so. Catches: a finish() that reports success
-    without looking at the exit status, and a forked child that returns into the caller's code."""
-    import threading
-
+def test_a_helper_that_cannot_run_reports_failure(monkeypatch):
+    """A helper whose model module does not exist exits non-zero, and :meth:`Helper.finish` says
+    so. Catches: a finish() that reports success without looking at the exit status."""
     nope = type("Nope", (), {"__module__": "pfbench_no_such_module"})
     helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"]))
     assert helper.finish() is False
     monkeypatch.delenv(compile_helper.ENV, raising=False)
-    monkeypatch.setattr(threading, "active_count", lambda: threads)
     if compile_helper.enabled():
         me = os.getpid()
         helper = compile_helper.start(nope, "particle", False, [("_pass_a", ())])
         assert os.getpid() == me  # this is the caller, not a child that came back
-        assert type(helper.proc).__name__ == (FORKED if threads == 1 else "Popen")
+        assert type(helper.proc).__name__ == "Popen"
         assert helper.finish() is False
 
 
@@ -243,13 +190,4 @@ def test_kill_ends_a_helper_at_once():
     helper = compile_helper.Helper(subprocess.Popen([sys.executable, "-c", code]))
     helper.kill()
     assert helper.proc.returncode == -signal.SIGKILL
-    pid = os.fork()
-    if pid == 0:  # a forked helper that would sleep a minute
-        try:
-            signal.signal(signal.SIGTERM, signal.SIG_IGN)
-            time.sleep(60)
-        finally:
-            os._exit(0)
-    helper = compile_helper.Helper(compile_helper._Forked(pid))
-    helper.kill()
-    assert helper.proc.wait() == -signal.SIGKILL
+

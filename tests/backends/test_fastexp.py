@@ -10,6 +10,7 @@ import pytest
 
 from pfbench.backends import fastexp, numba_weights
 from pfbench.backends.fastexp import exp_array, exp_scalar
+from pfbench.backends.kernels import build
 
 
 @numba.njit(error_model="numpy")
@@ -66,7 +67,7 @@ def test_kernels_compile_their_exp_loops_without_the_zero_division_check():
     from pfbench.backends import numba_backend
     import pfbench.models
 
-    mod = numba_backend.kernel_module(pfbench.models.get("ob1"), "particle", "systematic")
+    mod = build("particle", pfbench.models.get("ob1"), "systematic")
     for disp in (mod._pass_b, numba_weights.weigh):
         assert disp.targetoptions.get("error_model") == "numpy", disp
 

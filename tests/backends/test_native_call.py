@@ -100,12 +100,12 @@ def test_the_particle_kernel_driver_does_not_compile_its_passes_again():
     Catches: the driver calling ``_pass_a``, ``block_weights`` or ``merge_gather`` directly, which
     compiles it (and, for pass A, the model) into every driver again."""
     import pfbench
-    from pfbench.backends.numba_backend import kernel_module
+    from pfbench.backends.kernels import build
 
     model = _in_memory_models()["Drift"]()
     tr = model.simulate(4, seed=0)
     pfbench.run_filter(model, tr.y, tr.u, method="bootstrap", n_particles=8, backend="numba", seed=0)
-    driver = kernel_module(model, "particle", "systematic").run_group
+    driver = build("particle", model, "systematic").run_group
     defined = _defines(driver)
     assert "run_group" in defined
     for name in ("_pass_a", "transition", "log_likelihood", "block_weights", "merge_gather"):
@@ -118,14 +118,14 @@ def test_a_guided_run_calls_the_model_by_address():
     wrappers is defined in the driver's code, for either kind of proposal. Catches: a run calling
     the model directly (compiled into every scheme's driver again, and not in a compile helper)."""
     import pfbench
-    from pfbench.backends.numba_backend import kernel_module
+    from pfbench.backends.kernels import build
 
     ns = _in_memory_models()
     for cls, kind in ((ns["DriftProposal"], "proposal"), (ns["DriftOptimal"], "optimal")):
         model = cls()
         tr = model.simulate(4, seed=0)
         pfbench.run_filter(model, tr.y, tr.u, method="guided", n_particles=8, backend="numba", seed=0)
-        defined = _defines(getattr(kernel_module(model, "guided", "systematic"), f"run_{kind}"))
+        defined = _defines(getattr(build("guided", model, "systematic"), f"run_{kind}"))
         assert f"run_{kind}" in defined
         # numba's symbols carry each name's length: "8proposal" is the model's ``proposal`` itself
         for name in ("8proposal", "proposal_log_weight", "predictive_log_likelihood", "_into"):

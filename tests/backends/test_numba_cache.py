@@ -19,10 +19,10 @@ PACKAGE = Path(pfbench.__file__).resolve().parent
 
 SCRIPT = """
 import json, pfbench
-from pfbench.backends.numba_backend import kernel_module
+from pfbench.backends.kernels import build
 m = pfbench.models.get("ob1"); tr = m.simulate(5, seed=0)
 pfbench.run_filter(m, tr.y, method="bootstrap", n_particles=8, backend="numba", seed=0)
-st = kernel_module(m, "particle", "systematic").run_group.stats
+st = build("particle", m, "systematic").run_group.stats
 print(json.dumps({"hits": sum(st.cache_hits.values()), "misses": sum(st.cache_misses.values())}))
 """
 

@@ -8,11 +8,12 @@ import pytest
 import pfbench
 from pfbench.backends import numba_backend
 from pfbench.backends.numba_resampling import ESTIMATE_TILE
+from pfbench.backends.kernels import build
 
 
 @pytest.fixture(scope="module")
 def kernel():
-    return numba_backend.kernel_module(pfbench.models.get("ob1"), "particle", "systematic")
+    return build("particle", pfbench.models.get("ob1"), "systematic")
 
 
 @pytest.mark.parametrize("strat", [False, True])
@@ -94,10 +95,10 @@ def test_column_major_tiles_follow_the_instance_dimensions():
     lg1 = pfbench.models.get("linear_gaussian")
     lg2 = pfbench.models.get("linear_gaussian", A=np.eye(2) * 0.9, C=[[1.0, 0.5]], Q=np.eye(2), R=[[0.5]])
     assert type(lg1) is type(lg2) and type(lg2).n_x == 1 and lg2.n_x == 2
-    m1 = numba_backend.kernel_module(lg1, "particle", "systematic")
-    m2 = numba_backend.kernel_module(lg2, "particle", "systematic")
+    m1 = build("particle", lg1, "systematic")
+    m2 = build("particle", lg2, "systematic")
     assert m1._F_TILES is True and m2._F_TILES is False
-    assert numba_backend.kernel_module(type(lg1), "particle", "systematic")._F_TILES is False
+    assert build("particle", type(lg1), "systematic")._F_TILES is False
 
 
 def test_float32_two_state_model_agrees_with_numpy():

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from pfbench.backends import cache
+from pfbench.backends.kernels import build
 
 
 def test_shape_error_path_uses_the_constant_message():
@@ -74,10 +75,10 @@ def test_kernel_modules_share_what_does_not_depend_on_the_scheme_or_the_model():
     from pfbench.backends import numba_backend, numba_resampling, numba_weights
 
     ob1 = pfbench.models.get("ob1")
-    mods = [numba_backend.kernel_module(ob1, "particle", s) for s in ("systematic", "multinomial", None)]
+    mods = [build("particle", ob1, s) for s in ("systematic", "multinomial", None)]
     assert mods[0]._pass_a is mods[1]._pass_a is mods[2]._pass_a
-    assert numba_backend.kernel_module(type(ob1), "particle", "systematic")._pass_a is not mods[0]._pass_a
-    other = numba_backend.kernel_module(pfbench.models.get("ob2"), "particle", "systematic")
+    assert build("particle", type(ob1), "systematic")._pass_a is not mods[0]._pass_a
+    other = build("particle", pfbench.models.get("ob2"), "systematic")
     assert other._pass_a is not mods[0]._pass_a
     assert other._pass_b is mods[0]._pass_b is numba_weights.block_weights
     assert other._merge_gather is mods[0]._merge_gather is numba_resampling.merge_gather

@@ -132,7 +132,7 @@ def test_final_particles_are_the_same_on_both_backends_and_thread_counts(ob1, me
 
     model, traj = ob1
     n, block, G, M = 600, 128, 2, traj.y.shape[0]
-    code = int(pfbench.filters.methods.Method.parse(method))
+    code = int(pfbench.methods.Method.parse(method))
     finals = []
     for be, threads in ((numpy_backend, 1), (numba_backend, 1), (numba_backend, 2)):
         rng = streams(11, 1, True)[0]

@@ -6,7 +6,7 @@ import pytest
 import pfbench
 from pfbench import models
 from pfbench.errors import InputError
-from pfbench.filters.methods import METHODS, PARTICLE_METHODS, Method
+from pfbench.methods import METHODS, PARTICLE_METHODS, Method
 
 
 @pytest.fixture(scope="module")

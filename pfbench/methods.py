@@ -1,12 +1,14 @@
-"""The one table of filtering methods. Every layer (``run_filter``, the kernels, the CLI, sweeps,
-the operation counter) takes its method names and codes from here.
+"""The tables of filtering methods, point estimates, backends and particle dtypes. Every layer
+(``run_filter``, the kernels, the CLI, sweeps, the operation counter) takes its names and codes
+from here; it sits below both :mod:`pfbench.filters` and :mod:`pfbench.backends`.
 
 The integer value of a :class:`Method` is the code the compiled particle kernels branch on; numba
 compiles ``IntEnum`` members as integer constants.
 """
 from __future__ import annotations
 
-from ..options import Choice
+from .errors import InputError
+from .options import Choice
 
 
 class Method(Choice):
@@ -68,3 +70,22 @@ Estimate._what = "estimate"
 
 #: estimate names in table order
 ESTIMATES = Estimate.labels()
+
+
+BACKENDS = ("numpy", "numba", "cupy")
+#: the backends that run :mod:`pfbench.backends.array_backend`, with their array namespace;
+#: ``xp-numpy`` is the ``cupy`` backend's code on NumPy (how the CPU tests cover it)
+ARRAY_BACKENDS = {"cupy": "cupy", "xp-numpy": "numpy"}
+DTYPES = ("float64", "float32")
+
+
+def check_backend(backend: str) -> str:
+    if backend not in BACKENDS and backend not in ARRAY_BACKENDS:
+        raise InputError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    return backend
+
+
+def check_dtype(dtype: str) -> str:
+    if dtype not in DTYPES:
+        raise InputError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
+    return dtype
