@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed-stamp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.cache/numba
 export MPLBACKEND := Agg
 
-.PHONY: all full venv test test-slow bench report mcu-tools clean compare-quick
+.PHONY: all full venv test test-slow bench bench-doc report mcu-tools clean compare-quick
 
 # `pfbench compile` first: every model's default `pfbench run` kernel, on all cores, so the first
 # run after setup loads its kernel instead of compiling it (the recipes reuse what they share).
@@ -49,13 +49,19 @@ test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests
 
 # Benchmarks: pytest-benchmark suite plus `pfbench bench --all` (engine vs the C reference, the
-# floor and `particles`; cold/warm start per method; cost vs N_p): JSON + PNG under results/bench/.
-# The `particles` comparison runs in its own environment (.venv-particles) because
-# `particles` pins an older NumPy; see scripts/bench_particles.py.
+# floor and `particles`; cold/warm start per method; cost vs N_p; busy machine): JSON + PNG under
+# results/bench/, then docs/PERFORMANCE.md regenerated from those JSON files and the kept
+# docs/performance_notes.md. The `particles` comparison runs in its own environment
+# (.venv-particles) because `particles` pins an older NumPy; see scripts/bench_particles.py.
 bench: $(STAMP) .venv-particles/.installed-stamp
 	mkdir -p results/bench
 	$(BIN)/python -m pytest -q benchmarks --benchmark-enable --benchmark-json=results/bench/pytest-benchmark.json
 	$(BIN)/pfbench bench --all
+	$(BIN)/pfbench bench --document
+
+# docs/PERFORMANCE.md from the results already in results/bench/ (no benchmark runs)
+bench-doc: $(STAMP)
+	$(BIN)/pfbench bench --document
 
 .venv-particles/.installed-stamp:
 	$(PYTHON) -m venv .venv-particles

@@ -60,8 +60,11 @@ def main() -> None:
     sizes = [10 ** 3, 10 ** 4] if a.cpu else [10 ** 6, 10 ** 7, 10 ** 8]
     big = 10 ** 5 if a.cpu else 10 ** 9
     model = models.get("ob1")
-    RESULT.update(backend=backend, python=platform.python_version(), numpy=np.__version__,
-                  gpu=cupy_backend.gpu_info(), cpu_cores=os.cpu_count())
+    from pfbench.provenance import provenance
+
+    # kind, date, git SHA and host as in `pfbench bench`'s files: `pfbench bench --document` shows them
+    RESULT.update(provenance(kind="bench_gpu"), backend=backend, python=platform.python_version(),
+                  numpy=np.__version__, gpu=cupy_backend.gpu_info(), cpu_cores=os.cpu_count())
     cp = None if a.cpu else cupy_backend.import_cupy()
 
     def left():

@@ -33,6 +33,10 @@ Sections (each writes its JSON into the directory of ``--out``, default ``result
 ``pfbench bench`` runs main + startup (``--quick``: main only, small), ``--scaling`` and/or
 ``--startup`` / ``--busy`` run only those sections, ``--all`` runs all four. Compilation is excluded from
 every timing but the startup section's: each configuration runs once untimed first.
+
+``--document`` (:mod:`pfbench.bench.document`) then renders docs/PERFORMANCE.md from every JSON in
+the folder of ``--out`` and the kept docs/performance_notes.md; alone it runs no benchmark, so the
+page can be regenerated from existing results (``make bench`` ends with it).
 """
 from __future__ import annotations
 
@@ -358,10 +362,13 @@ def _section_paths(out_path) -> dict:
 @click.option("--no-c", is_flag=True, help="Skip the C reference.")
 @click.option("--out", "out_path", **OUT_FILE, default="results/bench/bench.json",
               show_default=True, help="Main JSON; the other sections write beside it.")
+@click.option("--document", is_flag=True, help="Then regenerate docs/PERFORMANCE.md from every JSON beside "
+              "--out and docs/performance_notes.md; alone, run no benchmark (the page from existing results).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
-def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_particles, no_c, out_path, as_json):
+def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_particles, no_c, out_path, document,
+          as_json):
     """Time the engine against the floor, the C reference and the `particles` library; cold/warm
-    start per method (--startup); cost vs N_p (--scaling)."""
+    start per method (--startup); cost vs N_p (--scaling); regenerate docs/PERFORMANCE.md (--document)."""
     from ..io import to_json, write_json
     from ..resources import check_writable, path_error
 
@@ -369,11 +376,18 @@ def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_part
         sections = ["bench", "startup", "scaling", "busy"]
     elif scaling or startup or busy:
         sections = [s for s, on in (("startup", startup), ("scaling", scaling), ("busy", busy)) if on]
+    elif document and not quick:  # the page alone, from the results already there
+        sections = []
     else:
         sections = ["bench"] if quick else ["bench", "startup"]
     paths = _section_paths(out_path)
     for s in sections:
         check_writable(paths[s], "--out")  # before minutes of timing, not after
+    if document:
+        from . import document as doc
+
+        doc.check_notes()
+        check_writable(doc.DOC, "--document")
     results, lines = {}, []
 
     def save(name, res):
@@ -420,6 +434,12 @@ def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_part
         save("busy", res)
         lines += ["", "default threads on a busy machine (Ob1 bootstrap, M = 200, medians of 3):", *busy_text(res),
                   f"-> {paths['busy']}"]
+    if document:
+        res = doc.write(results_dir=paths["bench"].parent)
+        missing = [k for k, files in res["kinds"].items() if not files]
+        results["document"] = res
+        lines += [""] * bool(sections) + [f"-> {res['path']} (from {paths['bench'].parent}/*.json and {doc.NOTES}"
+                  + (f"; not measured: {', '.join(missing)}" if missing else "") + ")"]
     if as_json:
         click.echo(to_json(results))
     elif lines:

@@ -49,7 +49,7 @@ def run_busy(rounds: int = 5, steps: int = 200, sizes=SIZES) -> dict:
         out[str(n)] = {"quiet": round_ratios(quiet["default"], quiet["one"]),
                        "busy": round_ratios(busy["default"], busy["one"]),
                        "busy_ns": busy, "quiet_ns": quiet}
-    return provenance(section="busy", busy_processes=2 * usable_cores(), steps=steps, target=TARGET,
+    return provenance(kind="bench_busy", section="busy", busy_processes=2 * usable_cores(), steps=steps, target=TARGET,
                       sizes=out)
 
 
