@@ -13,11 +13,12 @@ import threading
 
 import numpy as np
 
-from ..methods import Estimate, Method
+from ..methods import Estimate
 from ..procs import free_cores
 from ..resampling import Scheme
 from . import compile_helper, native_call, pcg64
 from .kernels import build, column_major_tiles
+from .particle_work import Outputs, Settings, Step, pass_types, work_arrays
 
 _LOCK = threading.RLock()
 
@@ -70,7 +71,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
 
     from .numpy_backend import BLOCK, block_bounds, draw_initial
 
-    y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types pass_a_types gives
+    y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # C arrays, as pass A's types say
     bounds = block_bounds(x.shape[1], int(block or BLOCK))
     if hist_x is None:
         G, n, n_x = x.shape
@@ -80,31 +81,32 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
         raise ValueError(f"{len(brngs)} block streams for {x.shape[1]} particles in {bounds.shape[0] - 1} blocks")
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = build("particle", model, scheme)
-    work = work_arrays(x, bounds.shape[0] - 1, int(method))
+    work = work_arrays(x, bounds.shape[0] - 1, bounds, int(method))
     # in NumPy, as the NumPy backend, straight into the kernel's first particle buffer
-    draw_initial(model.kernel_functions()["initial"], p, rng, work[0][0])
-    args = [p, rng, brngs, y, u, x, int(model.n_noise), int(method),
-            int(scheme), float(ess_threshold), bounds, est, var, ess, inc, resampled, degen, hist_x, hist_w,
-            *work, Estimate.parse(estimate) == Estimate.POST, 0, 0, 0]
+    draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0])
+    out = Outputs(x, est, var, ess, inc, resampled, degen, hist_x, hist_w)
+    settings = Settings(int(model.n_noise), int(method), int(scheme), float(ess_threshold),
+                        Estimate.parse(estimate) == Estimate.POST, 0, 0, 0)
     parallel = len(brngs) > 1 and n_threads != 1
     driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
         import numba
 
-        # the passes' argument types follow from these (every other argument the driver hands them
-        # is a float64 or index row, or a C array in the particle dtype)
-        key = (driver, numba.typeof(p), x.dtype, y.dtype, u.dtype)
+        key = (driver, numba.typeof(p), numba.typeof(work), y.dtype, u.dtype)
         addresses = _PASS_ADDRESSES.get(key)
         if addresses is None:
-            calls = [("_pass_a", pass_a_types(p, rng, y, u, work), numba.types.float64),
-                     ("_pass_b", pass_b_types(work), numba.types.none)]
+            step = Step()
+            calls = [("_pass_a", pass_types(p, rng, y, u, work, settings, step), numba.types.float64),
+                     ("_pass_b", pass_types(work, step), numba.types.none)]
             if mod._SCHEME in (-1, Scheme.SYSTEMATIC, Scheme.STRATIFIED):  # the merge branch (-1: any)
-                calls.append(("_merge_gather", merge_types(work), numba.types.none))
-            addresses = native_addresses(model, "particle", mod, driver, args, calls,
-                                         here=("_pass_b", "_merge_gather"), f_tiles=column_major_tiles(model))
+                calls.append(("_merge_gather", pass_types(work, settings, step), numba.types.none))
+            addresses = native_addresses(model, "particle", mod, driver, (p, rng, brngs, y, u, out, work, settings),
+                                         calls, here=("_pass_b", "_merge_gather"), f_tiles=column_major_tiles(model))
             addresses = _PASS_ADDRESSES.setdefault(key, addresses + [0] * (3 - len(addresses)))
-        args[-3:] = addresses  # an index scheme's kernel never calls the merge: its address is 0
+        # an index scheme's kernel never calls the merge: its address is 0
+        args = (p, rng, brngs, y, u, out, work, settings._replace(pass_a=addresses[0], pass_b=addresses[1],
+                                                                   merge=addresses[2]))
         if parallel:
             k = min(int(n_threads or free_cores()), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
@@ -165,74 +167,6 @@ def _raised_in_parallel(exc: SystemError) -> BaseException:
     is, so the all-threads one does too; a SystemError without such a cause stays one."""
     cause = exc.__cause__
     return cause if isinstance(cause, Exception) and not isinstance(cause, SystemError) else exc
-
-
-def pass_a_types(p, rng, y, u, work) -> tuple:
-    """The numba types of the arguments the particle kernel's driver passes to pass A (its call in
-    ``numba_particle._run_group``), from the driver's own arguments (C-contiguous ``y``, ``u`` and
-    work arrays, so every row it passes is a C array): the parameters, a block generator, ``y[t]``,
-    ``u[t]``, the step, one filter's particles ``xs[k, g]``, the block bounds and noise count, the
-    log-weights ``lw[g]``, three flags with ``-log n``, and the rows ``lam``, ``lam_all``, ``la``
-    of ``fwork``. The driver's compile refuses other types
-    (:func:`pfbench.backends.native_call.caller`)."""
-    import numba
-
-    xs, lw, fwork = work[0], work[1], work[2]
-    i, b = numba.types.int64, numba.types.boolean
-    row = numba.typeof(fwork[0])
-    return (numba.typeof(p), numba.typeof(rng), numba.typeof(y[0]), numba.typeof(u[0]), i,
-            numba.typeof(xs[0, 0]), i, i, i, numba.typeof(lw[0]), b, numba.types.float64, b, row, b, row, row)
-
-
-def pass_b_types(work) -> tuple:
-    """The numba types of the arguments the particle kernel's driver passes to pass B
-    (:func:`pfbench.backends.numba_weights.block_weights`)."""
-    import numba
-
-    xs, fwork, bwork, bmom = work[0], work[2], work[4], work[5]
-    i, b, f = numba.types.int64, numba.types.boolean, numba.types.float64
-    row, part = numba.typeof(fwork[0]), numba.typeof(xs[0, 0])
-    brow, bm = numba.typeof(bwork[0]), numba.typeof(bmom[0])
-    return (row, f, row, part, i, i, b, i, brow, brow, bm, bm)
-
-
-def merge_types(work) -> tuple:
-    """The numba types of the arguments the particle kernel's driver passes to pass C
-    (:func:`pfbench.backends.numba_resampling.merge_gather`): the running sum, N_p, the uniform,
-    a block's stratified uniforms, the flag, the block bounds, one filter's two particle buffers,
-    the two lambda rows, the flag and the scratch rows."""
-    import numba
-
-    xs, fwork, iwork = work[0], work[2], work[3]
-    i, b, f = numba.types.int64, numba.types.boolean, numba.types.float64
-    row, irow, part = numba.typeof(fwork[0]), numba.typeof(iwork), numba.typeof(xs[0, 0])
-    return (row, i, f, row, b, i, i, part, part, row, row, b, irow, row, irow)
-
-
-def work_arrays(x, n_blocks: int, method: int) -> tuple:
-    """The particle kernel's work arrays for particles ``x`` (G, N_p, n_x) in ``n_blocks`` stream
-    blocks and a :class:`~pfbench.methods.Method` code, in its argument order: the two
-    particle buffers, the log-weights kept between steps (rows of N_p only for a method that may
-    skip a resampling, else rows of 0), the float rows of N_p (stratified uniforms, running sum,
-    log-weights that pass B turns into weights in place; ASIR adds its two lambda rows), the int
-    row (N_p indices, then one estimate tile of merge marks per block), four per-block rows (max,
-    weight sum, sum w^2, cdf offset), the per-block moments and the per-filter (current buffer,
-    flat-weights) flags.
-
-    Allocated here rather than in the kernel: each array constructor the kernel compiled cost
-    about 0.1 s of a cold start. Only what the method touches: every page of a fresh array is
-    zero-filled by the operating system on first touch. With the rows above, the initial particles
-    drawn straight into the first buffer and no row initialised that the method never reads, the
-    bootstrap at N_p = 10^6 touches 40 MB of work arrays instead of 72 MB, and a run's set-up (the
-    time of a run beyond its steps) went from 19 to 13 ms on 1 thread (Ob1, 2-core Xeon)."""
-    from .numba_resampling import ESTIMATE_TILE
-
-    lw_rows = method != int(Method.BOOTSTRAP)
-    asir = method == int(Method.ASIR)
-    G, n, n_x = x.shape
-    return (np.empty((2, G, n, n_x), x.dtype), np.empty((G, n) if lw_rows else (G, 0)),
-            np.empty((5 if asir else 3, n)), np.empty(n + n_blocks * ESTIMATE_TILE, np.int64),
-            np.empty((4, n_blocks)), np.empty((2, n_blocks, n_x)), np.empty((2, G), np.int64))
 
 
 # --------------------------------------------------------------------------- the MPF family

@@ -112,8 +112,8 @@ from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_resampling import cumsum_into as _cumsum_into
 from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
-from pfbench.backends.numba_resampling import ESTIMATE_TILE as _ESTIMATE_TILE
 from pfbench.backends.numba_weights import block_moments as _block_moments
+from pfbench.backends.particle_work import Step as _Step
 from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
@@ -132,10 +132,10 @@ _STRATIFIED = int(_Scheme.STRATIFIED)
 _TILE = 1024
 _prange = _numba.prange
 #: pass A called through its address (:mod:`pfbench.backends.native_call`)
-_call_a = _caller(17)
+_call_a = _caller(7)
 #: passes B and C (systematic/stratified) called through their addresses
-_call_b = _caller(12)
-_call_c = _caller(15)
+_call_b = _caller(2)
+_call_c = _caller(3)
 
 # ---- what :func:`pfbench.backends.kernels.build` binds for a model and a scheme
 _b = _binding()
@@ -300,13 +300,31 @@ def _unstored_impl(xs, xn, buf):
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _pass_a(p, brng, yt, ut, t, xs, i0, i1, n_noise, lw, flat, mlogn, first, lam, asir, lam_out, la):
-    """Pass A on particles [i0, i1): draw + propagate + log-likelihood + a = lw + ll; returns max a.
+def _pass_a(p, brng, y, u, work, settings, step):
+    """Pass A on stream block ``step.b`` of filter ``step.g`` at step ``step.t``: draw + propagate +
+    log-likelihood + a = lw + ll into the log-weight row; returns max a.
 
-    ``first`` (ASIR first stage): zero noise, the states are not stored and the cleaned
-    log-likelihoods go to ``lam_out``; ``asir`` (second stage): ll - lam. ``flat``: every lw is
-    -log n (after resampling), so it is not read.
+    ``step.first`` (ASIR first stage): zero noise, the states are not stored and the cleaned
+    log-likelihoods go to ASIR's ``lam_all`` row; ``step.asir`` (second stage): ll - lam. While
+    every lw is -log N_p (after resampling) the kept log-weights are not read.
     """
+    t = step.t
+    g = step.g
+    yt = y[t]
+    ut = u[t]
+    xs = work.xs[work.gstate[0, g], g]
+    i0 = work.bounds[step.b]
+    i1 = work.bounds[step.b + 1]
+    n_noise = settings.n_noise
+    lw = work.lw[g]
+    flat = work.gstate[1, g] == 1
+    mlogn = -_np.log(xs.shape[0])
+    first = step.first
+    asir = step.asir
+    fw = work.fwork
+    la = fw[2]
+    lam = fw[3] if fw.shape[0] > 3 else la
+    lam_out = fw[4] if fw.shape[0] > 3 else la
     m = -_np.inf
     bin_ = _tile_buffer(xs, i1 - i0)  # float32: the model's input and the stored states, in float64
     bout = _tile_buffer(xs, i1 - i0)
@@ -358,9 +376,12 @@ _pass_a = _b.shared("_pass_a", _pass_a)  # compiled once per model, for every sc
 
 
 @_register_jitable
-def _moments(bsx, bsxx, nb, total, xs, est, var, g, t):
-    """est[g, t] and var[g, t] from the per-block sums of w x and w (x - x_0)^2 (x_0 = ``xs[0]``,
-    the shift the blocks used), added in block order, over the total weight ``total``."""
+def _moments(work, out, total, g, t):
+    """est[g, t] and var[g, t] from the per-block sums of w x and w (x - x_0)^2 (x_0: the filter's
+    particle 0, the shift the blocks used), added in block order, over the total weight ``total``."""
+    xs = work.xs[work.gstate[0, g], g]
+    bsx, bsxx = work.bmom[0], work.bmom[1]
+    nb = work.bounds.shape[0] - 1
     for c in range(xs.shape[1]):
         sx = 0.0
         sxx = 0.0
@@ -369,8 +390,8 @@ def _moments(bsx, bsxx, nb, total, xs, est, var, g, t):
             sxx += bsxx[b, c]
         mean = sx / total
         d = mean - _np.float64(xs[0, c])
-        est[g, t, c] = mean
-        var[g, t, c] = max(sxx / total - d * d, 0.0)
+        out.est[g, t, c] = mean
+        out.var[g, t, c] = max(sxx / total - d * d, 0.0)
 
 
 @_register_jitable
@@ -402,70 +423,56 @@ def _max(a, m):
     return m2 if m2 > m0 else m0
 
 
-def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, bounds, est, var, ess, inc,
-               resampled, degen, hist_x, hist_w, xs, lw, fwork, iwork, bwork, bmom, gstate, post, pass_a_address,
-               pass_b_address, merge_address):
+def _run_group(p, rng, brngs, y, u, out, work, settings):
     """Run a group of G independent filters over all steps (random streams in documented order).
 
-    x: (G, n, n_x) particle buffer (its dtype is the particle dtype) that receives the final
-    particles; the initial particles (the model's ``initial``, drawn by the caller from ``rng``,
-    filter after filter) come in the first of the two buffers ``xs[0]``; outputs (G, M, ...).
-    rng: the group's generator; brngs: a list of the B block generators (``[rng]`` when B = 1);
-    bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w (G, M, n): the weighted
-    particles of every step (before resampling) when their second dimension
-    is M; pass (G, 0, ...) arrays to store nothing. method: a
+    ``rng``: the group's generator; ``brngs``: a list of the B block generators (``[rng]`` when
+    B = 1); ``out``, ``work``, ``settings``: :class:`~pfbench.backends.particle_work.Outputs`,
+    :class:`~pfbench.backends.particle_work.Work` (the initial particles, the model's ``initial``
+    drawn by the host, come in the first particle buffer) and
+    :class:`~pfbench.backends.particle_work.Settings`. The method is a
     :class:`~pfbench.methods.Method` code of the particle family (MultiPDF runs bootstrap
-    sub-filters); scheme: a :class:`~pfbench.resampling.Scheme` code; ess_threshold: a particle
-    count. xs ... gstate: work arrays (:func:`pfbench.backends.numba_backend.work_arrays`), allocated
-    by the caller because every array constructor compiled here is another 0.1 s of a cold start.
-    post: ``estimate="post"``: at a step that resamples, ``est``/``var`` are overwritten with the
-    unweighted moments of the resampled particles (pass D); a run-time flag, so one compilation
-    serves both and the default path only tests it at the steps that resample.
-    pass_a_address, pass_b_address, merge_address: the native entry points of ``_pass_a``,
-    ``_pass_b`` and ``_merge_gather`` for the argument types of their calls here
-    (:func:`pfbench.backends.numba_backend.pass_a_types`, ``pass_b_types``, ``merge_types``;
-    :mod:`pfbench.backends.native_call`): the driver calls the passes without compiling them into
-    itself again.
+    sub-filters). ``settings.post`` (``estimate="post"``): at a step that resamples, ``est``/``var``
+    are overwritten with the unweighted moments of the resampled particles (pass D); a run-time
+    flag, so one compilation serves both and the default path only tests it at the steps that
+    resample. Passes A, B and C are called through their native entry points (``settings``).
     """
+    x = out.x
     G = x.shape[0]
     n = x.shape[1]
     n_x = x.shape[2]
     M = y.shape[0]
+    bounds = work.bounds
     nb = bounds.shape[0] - 1
-    logn = _np.log(n)
-    mlogn = -logn
-    cur = gstate[0]
-    flat = gstate[1]  # 1: every log-weight is -log n (after resampling), so lw is not read yet
+    method = settings.method
+    scheme = settings.scheme
+    mlogn = -_np.log(n)
+    cur = work.gstate[0]
+    flat = work.gstate[1]  # 1: every log-weight is -log n (after resampling), so lw is not read yet
     for g in range(G):
         flat[g] = 1
         cur[g] = 0
     # la: the log-weights, then (pass B, in place) the weights, then the merge's scratch; ub: the
-    # stratified uniforms (a row systematic touches once); ASIR's two lambda rows exist only for
-    # ASIR (nothing else touches them)
-    ub, cdf, la = fwork[0], fwork[1], fwork[2]
-    asir_rows = fwork.shape[0] > 3
-    lam = fwork[3] if asir_rows else la
-    lam_all = fwork[4] if asir_rows else la
-    idx = iwork[:n]
-    kk = iwork[n:]  # per block, the merge's marks of one estimate tile
-    bmax, bsum, bs2, off = bwork[0], bwork[1], bwork[2], bwork[3]
-    bsx, bsxx = bmom[0], bmom[1]
+    # stratified uniforms; ASIR's two lambda rows exist only for ASIR (nothing else touches them)
+    fw = work.fwork
+    ub, cdf, la = fw[0], fw[1], fw[2]
+    lam = fw[3] if fw.shape[0] > 3 else la
+    lam_all = fw[4] if fw.shape[0] > 3 else la
+    idx = work.iwork[:n]
+    bmax, bsum, bs2, off = work.bwork[0], work.bwork[1], work.bwork[2], work.bwork[3]
     if method == _ASIR:
         for i in range(n):
             lam[i] = 0.0
     for t in range(M):
-        yt = y[t]
-        ut = u[t]
         for g in range(G):
-            lwg = lw[g]
+            lwg = work.lw[g]
             first = 0.0
             for stage in range(2 if method == _ASIR else 1):
                 fs = method == _ASIR and stage == 0  # first stage, [Thesis] Alg. 6
-                src = xs[cur[g], g]
+                src = work.xs[cur[g], g]
                 for b in _prange(nb):  # pass A through its address: not compiled into the driver
-                    bmax[b] = _call_a(_pass_a, pass_a_address, p, brngs[b], yt, ut, t, src, bounds[b],
-                                      bounds[b + 1], n_noise, lwg, flat[g] == 1, mlogn, fs, lam,
-                                      method == _ASIR and not fs, lam_all, la)
+                    bmax[b] = _call_a(_pass_a, settings.pass_a, p, brngs[b], y, u, work, settings,
+                                      _Step(t, g, _np.int64(b), fs, method == _ASIR and not fs, 0.0, 0.0))
                 m = -_np.inf
                 for b in range(nb):
                     if bmax[b] > m:
@@ -477,8 +484,7 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                         if la[i] > m:
                             m = la[i]
                 for b in _prange(nb):
-                    _call_b(_pass_b, pass_b_address, la, m, cdf, src, bounds[b], bounds[b + 1], not fs,
-                            _np.int64(b), bsum, bs2, bsx, bsxx)  # b: unsigned in a prange
+                    _call_b(_pass_b, settings.pass_b, work, _Step(t, g, _np.int64(b), fs, False, m, 0.0))
                 total = 0.0
                 for b in range(nb):
                     off[b] = total
@@ -495,23 +501,23 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             lam_all[i] = 0.0
                     do = True
                 else:
-                    if hist_x.shape[1] > 0:
+                    if out.hist_x.shape[1] > 0:
                         for i in range(n):
-                            hist_w[g, t, i] = la[i] / total
+                            out.hist_w[g, t, i] = la[i] / total
                             for c in range(n_x):
-                                hist_x[g, t, i, c] = src[i, c]
-                    degen[g, t] = deg
-                    inc[g, t] = (-_np.inf if deg else m + _np.log(total)) + first
+                                out.hist_x[g, t, i, c] = src[i, c]
+                    out.degen[g, t] = deg
+                    out.inc[g, t] = (-_np.inf if deg else m + _np.log(total)) + first
                     s2 = 0.0
                     for b in range(nb):
                         s2 += bs2[b]
-                    _moments(bsx, bsxx, nb, total, src, est, var, g, t)
+                    _moments(work, out, total, g, t)
                     e = total * total / s2
-                    ess[g, t] = e
-                    do = method == _BOOTSTRAP or (method == _SIR and e < ess_threshold)
-                    resampled[g, t] = do
+                    out.ess[g, t] = e
+                    do = method == _BOOTSTRAP or (method == _SIR and e < settings.ess_threshold)
+                    out.resampled[g, t] = do
                 if do:
-                    dst = xs[1 - cur[g], g]
+                    dst = work.xs[1 - cur[g], g]
                     if (_SCHEME == _SYSTEMATIC or _SCHEME == _STRATIFIED  # pruned at compile time
                             or (_SCHEME == -1 and (scheme == _SYSTEMATIC or scheme == _STRATIFIED))):
                         strat = scheme == _STRATIFIED
@@ -520,14 +526,10 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             _pcg64.fill_uniforms(rng, ub[:1])
                             uu = ub[0]
                         for b in _prange(nb):
-                            i0 = bounds[b]
-                            i1 = bounds[b + 1]
-                            ubb = ub[i0:i1]
                             if strat:
-                                _pcg64.fill_uniforms(brngs[b], ubb)
-                            _call_c(_merge_gather, merge_address, cdf, n, uu, ubb, strat, i0, i1, src, dst,
-                                    lam_all, lam, fs, idx, la,  # la (the weights) is free now
-                                    kk[b * _ESTIMATE_TILE:(b + 1) * _ESTIMATE_TILE])
+                                _pcg64.fill_uniforms(brngs[b], ub[bounds[b]:bounds[b + 1]])
+                            _call_c(_merge_gather, settings.merge, work, settings,
+                                    _Step(t, g, _np.int64(b), fs, False, m, uu))
                     else:
                         if nb > 1:  # the index schemes see the sequential running sum
                             _cumsum_into(la, cdf)
@@ -536,16 +538,15 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
                             _gather(idx, bounds[b], bounds[b + 1], src, dst, lam_all, lam, fs)
                     cur[g] = 1 - cur[g]
                     flat[g] = 1
-                    if post and not fs:  # estimate="post" ([MultiPDF] Alg. 1 step 6): pass D
-                        new = xs[cur[g], g]
+                    if settings.post and not fs:  # estimate="post" ([MultiPDF] Alg. 1 step 6): pass D
                         for b in _prange(nb):
-                            _block_moments(new, bounds[b], bounds[b + 1], _np.int64(b), bsx, bsxx)
-                        _moments(bsx, bsxx, nb, _np.float64(n), new, est, var, g, t)
+                            _block_moments(work, _Step(t, g, _np.int64(b), fs, False, m, 0.0))
+                        _moments(work, out, _np.float64(n), g, t)
                 elif not fs:
                     _normalised_log_weights(la, total, lwg)
                     flat[g] = 0
     for g in range(G):  # the final particles, block by block (on every thread: 16 MB at N_p = 10^6)
-        fin = xs[cur[g], g]
+        fin = work.xs[cur[g], g]
         xg = x[g]
         for b in _prange(nb):
             xb = xg[bounds[b]:bounds[b + 1]]

@@ -16,6 +16,8 @@ from .cache import njit
 
 from ..resampling import Scheme
 
+_STRATIFIED = int(Scheme.STRATIFIED)
+
 #: particles per tile of the count estimates in :func:`merge_gather` (a loop of their own, which
 #: vectorises, ahead of the exact corrections); the length of its ``kk`` scratch
 ESTIMATE_TILE = 512
@@ -217,10 +219,14 @@ def any_scheme(code, w, cdf, rng, idx):
 
 
 @njit(nogil=True, error_model="numpy")
-def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_lam, anc, pos, kk):
-    """Systematic/stratified resampling of output positions [i0, i1), writing the selected particles
-    (and ``lam``) into ``dst`` ([Thesis] Alg. 4; [Embedded] Alg. 1 step 5): pass C of the particle
-    kernel (:mod:`pfbench.backends.numba_particle`).
+def merge_gather(work, settings, step):
+    """Systematic/stratified resampling of the output positions [i0, i1) of stream block ``step.b``
+    of filter ``step.g``, writing the selected particles (and, in ASIR's first stage, its
+    first-stage log-likelihoods ``lam``) into the other particle buffer ([Thesis] Alg. 4;
+    [Embedded] Alg. 1 step 5): pass C of the particle kernel
+    (:mod:`pfbench.backends.numba_particle`; the groups are those of
+    :mod:`pfbench.backends.particle_work`; stratified when ``settings.scheme`` says so, the
+    systematic uniform is ``step.u``).
 
     Output i takes ancestor a(i) = the smallest j with cdf[j] > position_i (n - 1 if none), where
     position_i = (u_i + i) / n * total (u_i = u, or ``ub[i - i0]`` when stratified): the operations
@@ -253,10 +259,30 @@ def merge_gather(cdf, n, u, ub, strat, i0, i1, src, dst, lam_src, lam_dst, with_
       systematic tile with an x_j near an integer: the block's positions are computed into ``pos``
       [i0, i1) and each estimate is corrected by exact comparisons with them.
 
-    ``anc`` [i0, i1) is int64 scratch, ``pos`` [i0, i1) float64 scratch, ``kk`` the call's own
-    int64 scratch of ``ESTIMATE_TILE`` (one tile's counts; a block of its own per parallel call, so it
-    stays in L1 instead of a row of N_p).
+    Scratch: the ancestor row and (the weights are no longer needed) the log-weight row [i0, i1),
+    and the block's own estimate tile of marks (one tile's counts, so it stays in L1 instead of a
+    row of N_p).
     """
+    g = step.g
+    cur = work.gstate[0, g]
+    src = work.xs[cur, g]
+    dst = work.xs[1 - cur, g]
+    b = step.b
+    i0 = work.bounds[b]
+    i1 = work.bounds[b + 1]
+    fw = work.fwork
+    cdf = fw[1]
+    n = cdf.shape[0]
+    u = step.u
+    strat = settings.scheme == _STRATIFIED
+    ub = fw[0, i0:i1]
+    asir_rows = fw.shape[0] > 3
+    lam_src = fw[4] if asir_rows else fw[2]
+    lam_dst = fw[3] if asir_rows else fw[2]
+    with_lam = step.first
+    anc = work.iwork[:n]
+    pos = fw[2]
+    kk = work.iwork[n + b * ESTIMATE_TILE:n + (b + 1) * ESTIMATE_TILE]
     n_x = src.shape[1]
     total = cdf[n - 1]
     nb = i1 - i0

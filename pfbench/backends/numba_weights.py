@@ -89,10 +89,12 @@ def moments(xg, wu, total, mean_out, var_out):
 
 
 @njit(nogil=True, error_model="numpy")
-def block_weights(la, m, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
-    """Pass B of the particle kernel (:mod:`pfbench.backends.numba_particle`) on [i0, i1) of block
-    ``b``: w = exp(a - m) in place of the log-weights a in ``la``, the block's running sum (cdf),
-    and, when ``mom``, the block's sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
+def block_weights(work, step):
+    """Pass B of the particle kernel (:mod:`pfbench.backends.numba_particle`) on stream block
+    ``step.b`` of filter ``step.g`` (:class:`~pfbench.backends.particle_work.Work`,
+    :class:`~pfbench.backends.particle_work.Step`): w = exp(a - m) in place of the log-weights a
+    (``m = step.m``), the block's running sum (cdf), and, except in ASIR's first stage, the block's
+    sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
 
     In place: the weights overwrite the cache lines just read, where a row of their own was one
     more array streamed through the caches every step (measured on Ob1 bootstrap, 1 thread, N_p =
@@ -119,10 +121,17 @@ def block_weights(la, m, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
     :mod:`pfbench.backends.numba_particle`): indexed from the run-time ``i0``, the exponentials
     compiled to gathers and scatters.
     """
+    xs = work.xs[work.gstate[0, step.g], step.g]
+    b = step.b
+    i0 = work.bounds[b]
+    i1 = work.bounds[b + 1]
+    mom = not step.first
+    bsum, bs2, bsx, bsxx = work.bwork[1], work.bwork[2], work.bmom[0], work.bmom[1]
     n_x = xs.shape[1]
-    w = la[i0:i1]  # views that start at 0 (see above)
-    cb = cdf[i0:i1]
+    w = work.fwork[2, i0:i1]  # views that start at 0 (see above)
+    cb = work.fwork[1, i0:i1]
     x = xs[i0:i1]
+    m = step.m
     for k in range(w.shape[0]):
         w[k] = exp_scalar(w[k] - m)
     acc = 0.0
@@ -152,15 +161,17 @@ def block_weights(la, m, cdf, xs, i0, i1, mom, b, bsum, bs2, bsx, bsxx):
 
 
 @njit(nogil=True, error_model="numpy")
-def block_moments(xs, i0, i1, b, bsx, bsxx):
-    """The particle kernel's ``estimate="post"`` pass on [i0, i1) of block ``b`` of the resampled
-    particles ``xs``: the block's unweighted sums of x and (x - x_0)^2 per component into ``bsx[b]``
-    and ``bsxx[b]`` (x_0: the filter's particle 0, the shift of :func:`block_weights`), reduced in
-    block order by the driver as the weighted sums are, with N_p for the total weight. Not called
-    on the default ``pre`` path."""
-    x = xs[i0:i1]  # a view that starts at 0 (see block_weights)
+def block_moments(work, step):
+    """The particle kernel's ``estimate="post"`` pass on stream block ``step.b`` of filter
+    ``step.g``'s resampled particles: the block's unweighted sums of x and (x - x_0)^2 per
+    component into the block moments (x_0: the filter's particle 0, the shift of
+    :func:`block_weights`), reduced in block order by the driver as the weighted sums are, with
+    N_p for the total weight. Not called on the default ``pre`` path."""
+    xs = work.xs[work.gstate[0, step.g], step.g]
+    b = step.b
+    x = xs[work.bounds[b]:work.bounds[b + 1]]  # a view that starts at 0 (see block_weights)
     for c in range(xs.shape[1]):
-        bsx[b, c], bsxx[b, c] = _sums4(None, x[:, c], np.float64(xs[0, c]))
+        work.bmom[0, b, c], work.bmom[1, b, c] = _sums4(None, x[:, c], np.float64(xs[0, c]))
 
 
 @register_jitable

@@ -37,6 +37,9 @@ import numba.extending
 import numpy as np
 
 from ..backends.fastexp import exp_scalar
+from ..backends.particle_work import Settings, Step, Work, work_arrays
+from ..methods import Method
+from ..resampling import Scheme
 from .timing import filter_ns, interleaved, paired_ratio
 
 
@@ -103,12 +106,10 @@ def _harnesses(mod):
         return acc
 
     @numba.njit
-    def whole_a(p, rng, y, x, m, la, lam):
-        n = x.shape[0]
-        lw = np.full(n, -np.log(n))
+    def whole_a(p, rng, y, work, settings, m):
         acc = 0.0
         for t in range(m):
-            acc += pass_a(p, rng, y[t], y[t], t, x, 0, n, 1, lw, True, -np.log(n), False, lam, False, lam, la)
+            acc += pass_a(p, rng, y, y, work, settings, Step(t, 0, 0, False, False, 0.0, 0.0))
         return acc
 
     exp = exp_scalar  # pass B's exponential
@@ -124,22 +125,17 @@ def _harnesses(mod):
         return acc
 
     @numba.njit
-    def whole_b(la, x, m):
-        n = x.shape[0]
-        cdf = np.empty(n)
-        bsum, bs2, bsx, bsxx = np.empty(1), np.empty(1), np.empty((1, 1)), np.empty((1, 1))
+    def whole_b(work, m):
         for _ in range(m):  # in place: the weights are in (0, 1], so with max 1 the next call's stay there
-            pass_b(la, 1.0, cdf, x, 0, n, True, 0, bsum, bs2, bsx, bsxx)
-        return bsum[0]
+            pass_b(work, Step(0, 0, 0, False, False, 1.0, 0.0))
+        return work.bwork[1, 0]
 
     @numba.njit
-    def resample(cdfs, x, rng):
-        n = x.shape[0]
-        dst, lam = np.empty_like(x), np.empty(n)
-        ub, anc, pos, kk = np.empty(1), np.empty(n, np.int64), np.empty(n), np.empty(n, np.int64)
-        for t in range(cdfs.shape[0]):
-            merge(cdfs[t], n, rng.random(), ub, False, 0, n, x, dst, lam, lam, False, anc, pos, kk)
-        return dst[0, 0]
+    def resample(cdfs, work, settings, rng):
+        for t in range(cdfs.shape[0]):  # cdfs[t, 1]: the cdf of step t (rows 0 and 2: the merge's)
+            merge(Work(work.xs, work.lw, cdfs[t], work.iwork, work.bwork, work.bmom, work.gstate, work.bounds),
+                  settings, Step(t, 0, 0, False, False, 0.0, rng.random()))
+        return work.xs[1, 0, 0, 0]
 
     return normals, model, transition_c, transition_f, convert, whole_a, exps, whole_b, resample
 
@@ -159,7 +155,6 @@ def _part_timers(n: int, m: int, dtype: str) -> tuple[dict, str]:
     """(part name -> timer of one run, the particle dtype the filter stored) for the Ob1 bootstrap
     step with ``dtype`` particles: the parts run on that filter's own particles and weights."""
     from .. import models
-    from ..backends import numba_backend
     from ..backends.kernels import build
     from ..filters import run_filter
 
@@ -176,16 +171,29 @@ def _part_timers(n: int, m: int, dtype: str) -> tuple[dict, str]:
     x64 = x.astype(np.float64)  # what the model sees
     la = np.log(np.maximum(weights[m // 2], 1e-300)) - np.log(weights[m // 2].max())
     rng = np.random.default_rng(0)
+
+    def work(la_row=None):
+        """The kernel's work arrays for one filter of the stored particles (flat weights)."""
+        w = work_arrays(x[None], 1, np.array([0, n]), int(Method.BOOTSTRAP))
+        w.xs[0, 0] = x
+        w.gstate[:, 0] = (0, 1)
+        if la_row is not None:
+            w.fwork[2] = la_row
+        return w
+
+    settings = Settings(1, int(Method.BOOTSTRAP), int(Scheme.SYSTEMATIC), 0.0, False, 0, 0, 0)
+    cdfs3 = np.zeros((m, 3, n))
+    cdfs3[:, 1] = cdfs
     noise64 = rng.standard_normal((n, 1), dtype=x.dtype).astype(np.float64)  # as the model gets it
     return {"normals": _timer(normals, (rng, n, m, x[:1]), n, m),
             "model": _timer(model_fn, (p, traj.y, x64, noise64, m), n, m),
             "transition_c": _timer(transition_c, (p, x64, noise64, m), n, m),
             "transition_f": _timer(transition_f, (p, x64, noise64, m), n, m),
             "convert": _timer(convert, (x.copy(), m), n, m),
-            "pass_a": _timer(whole_a, (p, rng, traj.y, x.copy(), m, np.empty(n), np.zeros(n)), n, m),
+            "pass_a": _timer(whole_a, (p, rng, traj.y, work(), settings, m), n, m),
             "exp": _timer(exps, (la, m), n, m),
-            "pass_b": _timer(whole_b, (la.copy(), x, m), n, m),  # in place
-            "resample": _timer(resample, (cdfs, x, rng), n, m),
+            "pass_b": _timer(whole_b, (work(la), m), n, m),  # in place
+            "resample": _timer(resample, (cdfs3, work(), settings, rng), n, m),
             "filter": lambda: filter_ns(model, traj, n, "numba", dtype, 1, n_threads=1)}, str(x.dtype)
 
 

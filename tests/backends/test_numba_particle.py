@@ -6,14 +6,32 @@ import numpy as np
 import pytest
 
 import pfbench
-from pfbench.backends import numba_backend
-from pfbench.backends.numba_resampling import ESTIMATE_TILE
 from pfbench.backends.kernels import build
+from pfbench.backends.particle_work import Settings, Step, work_arrays
+from pfbench.methods import Method
+from pfbench.resampling import Scheme
 
 
 @pytest.fixture(scope="module")
 def kernel():
     return build("particle", pfbench.models.get("ob1"), "systematic")
+
+
+def _merge(kernel, cdf, u, ub, strat, bounds, lam_src, with_lam, pos=None):
+    """Pass C over every block of ``bounds`` on particles 0..n-1 (one state): the resampled states
+    (the ancestors) and the carried ``lam`` row. Each block gets its own estimate tile of marks."""
+    n = cdf.size
+    work = work_arrays(np.arange(n, dtype=np.float64).reshape(1, n, 1), len(bounds) - 1, bounds, int(Method.ASIR))
+    work.xs[0, 0, :, 0] = np.arange(n)
+    work.xs[1] = -1.0
+    work.gstate[:, 0] = (0, 1)
+    work.fwork[0], work.fwork[1], work.fwork[3], work.fwork[4] = ub, cdf, 0.0, lam_src
+    work.fwork[2] = np.nan if pos is None else pos
+    settings = Settings(1, int(Method.ASIR), int(Scheme.STRATIFIED if strat else Scheme.SYSTEMATIC), 0.0, False,
+                        0, 0, 0)
+    for b in range(len(bounds) - 1):
+        kernel._merge_gather(work, settings, Step(0, 0, b, with_lam, False, 0.0, u))
+    return work.xs[1, 0, :, 0], work.fwork[3]
 
 
 @pytest.mark.parametrize("strat", [False, True])
@@ -44,16 +62,10 @@ def test_merge_gather_picks_the_searchsorted_ancestors(kernel, strat):
         ub = rng.random(n)
         pos = ((ub if strat else u) + np.arange(n)) / n * cdf[-1]
         expect = np.minimum(np.searchsorted(cdf, pos, side="right"), n - 1)
-        src = np.arange(n, dtype=np.float64).reshape(n, 1)
-        dst = np.full_like(src, -1.0)
-        lam_src, lam_dst = src[:, 0] * 10, np.zeros(n)
         with_lam = trial % 2 == 0
         bounds = np.unique(np.r_[0, np.sort(rng.integers(1, n + 1, int(rng.integers(0, 3)))), n])
-        for i0, i1 in zip(bounds[:-1], bounds[1:]):
-            kernel._merge_gather(cdf, n, u, ub[i0:i1].copy(), strat, int(i0), int(i1), src, dst, lam_src,
-                                 lam_dst, with_lam, np.empty(n, np.int64), np.empty(n),
-                                 np.empty(ESTIMATE_TILE, np.int64))
-        np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
+        dst, lam_dst = _merge(kernel, cdf, u, ub, strat, bounds, np.arange(n) * 10.0, with_lam)
+        np.testing.assert_array_equal(dst, expect, err_msg=f"trial {trial}")
         np.testing.assert_array_equal(lam_dst, expect * 10.0 if with_lam else 0.0)
 
 
@@ -76,14 +88,9 @@ def test_merge_gather_is_exact_where_counts_sit_next_to_positions(kernel, n):
         cdf[:-1] = np.minimum(np.maximum.accumulate(cdf[:-1]), total)
         cdf[-1] = total
         expect = np.minimum(np.searchsorted(cdf, pos, side="right"), n - 1)
-        src = np.arange(n, dtype=np.float64).reshape(n, 1)
-        dst = np.full_like(src, -1.0)
-        lam = np.zeros(n)
         bounds = np.unique(np.r_[0, np.sort(rng.integers(1, n + 1, trial % 3)), n])
-        for i0, i1 in zip(bounds[:-1], bounds[1:]):
-            kernel._merge_gather(cdf, n, u, np.empty(0), False, int(i0), int(i1), src, dst, lam, lam, False,
-                                 np.empty(n, np.int64), np.full(n, np.nan), np.empty(ESTIMATE_TILE, np.int64))
-        np.testing.assert_array_equal(dst[:, 0], expect, err_msg=f"trial {trial}")
+        dst, _ = _merge(kernel, cdf, u, np.zeros(n), False, bounds, np.zeros(n), False)
+        np.testing.assert_array_equal(dst, expect, err_msg=f"trial {trial}")
 
 
 def test_column_major_tiles_follow_the_instance_dimensions():

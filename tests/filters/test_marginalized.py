@@ -135,9 +135,9 @@ def test_mpf_and_kalman_equal_the_exact_kf_on_a_linear_model(backend):
     if backend == "numba":
         # d_n = 0 compiles only the linear kernel (no x^n sampling, conditioning or resampling).
         # Mutation caught: dispatching the all-linear case to the general `run` kernel.
-        from pfbench.filters.marginalized import _numba_module
+        from pfbench.backends.kernels import build
 
-        mod = _numba_module(model, None)
+        mod = build("mpf", model, None)
         assert mod.run_linear.signatures and not mod.run.signatures
 
 

@@ -1,0 +1,107 @@
+"""The particle kernel's arguments as named groups (:mod:`pfbench.backends.numba_particle`).
+
+The driver takes eight arguments: the parameters, the group's generator and block generators,
+``y``, ``u`` and three groups, :class:`Outputs`, :class:`Work` and :class:`Settings`; each pass it
+calls by address takes these groups and a :class:`Step` of scalars. numba types a named tuple by
+its fields, so the argument types of every call by address are ``numba.typeof`` of the very
+objects the host passes (:func:`pass_types`): the order of the fields is written once, here.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..methods import Method
+from .numba_resampling import ESTIMATE_TILE
+
+
+class Outputs(NamedTuple):
+    """What a run of G filters fills: the final particles ``x`` (G, N_p, n_x); ``est``, ``var``
+    (G, M, n_x); ``ess``, ``inc``, ``resampled``, ``degen`` (G, M); ``hist_x`` (G, M, N_p, n_x) and
+    ``hist_w`` (G, M, N_p), the weighted particles of every step (second dimension 0: none)."""
+
+    x: np.ndarray
+    est: np.ndarray
+    var: np.ndarray
+    ess: np.ndarray
+    inc: np.ndarray
+    resampled: np.ndarray
+    degen: np.ndarray
+    hist_x: np.ndarray
+    hist_w: np.ndarray
+
+
+class Work(NamedTuple):
+    """The kernel's work arrays (:func:`work_arrays`), allocated by the host: every array
+    constructor compiled into a kernel is another 0.1 s of a cold start."""
+
+    #: (2, G, N_p, n_x) in the particle dtype: the two particle buffers (resampling writes the
+    #: other one, and they swap)
+    xs: np.ndarray
+    #: (G, N_p) log-weights kept between steps; (G, 0) for the bootstrap filter, which never keeps them
+    lw: np.ndarray
+    #: (3, N_p) float rows: stratified uniforms, running sum (cdf), log-weights that pass B turns
+    #: into weights in place; ASIR adds two: its first-stage log-likelihoods and their resampled copy
+    fwork: np.ndarray
+    #: (N_p + B * ESTIMATE_TILE,) int64: ancestor indices, then one estimate tile of merge marks per block
+    iwork: np.ndarray
+    #: (4, B) per block: max log-weight, weight sum, sum of squared weights, cdf offset
+    bwork: np.ndarray
+    #: (2, B, n_x) per block: sums of w x and of w (x - x_0)^2
+    bmom: np.ndarray
+    #: (2, G) int64 per filter: the current particle buffer, and 1 while every log-weight is -log N_p
+    gstate: np.ndarray
+    #: (B + 1,) int64: the start of every stream block, then N_p
+    bounds: np.ndarray
+
+
+class Settings(NamedTuple):
+    """A run's constants: the model's noise count; :class:`~pfbench.methods.Method` and
+    :class:`~pfbench.resampling.Scheme` codes; the SIR threshold (a particle count); ``post``
+    (``estimate="post"``); the native entry addresses of passes A, B and C
+    (:mod:`pfbench.backends.native_call`; 0 for a pass the kernel never calls)."""
+
+    n_noise: int
+    method: int
+    scheme: int
+    ess_threshold: float
+    post: bool
+    pass_a: int
+    pass_b: int
+    merge: int
+
+
+class Step(NamedTuple):
+    """The scalars of one pass call: step ``t``, filter ``g``, stream block ``b``; ``first``: ASIR's
+    first stage; ``asir``: ASIR's second stage; ``m``: the largest log-weight (pass B); ``u``: the
+    systematic uniform (pass C). The defaults type the calls (:func:`pass_types`)."""
+
+    t: int = 0
+    g: int = 0
+    b: int = 0
+    first: bool = False
+    asir: bool = False
+    m: float = 0.0
+    u: float = 0.0
+
+
+def work_arrays(x, n_blocks: int, bounds, method: int) -> Work:
+    """The work arrays for particles ``x`` (G, N_p, n_x) in ``n_blocks`` stream blocks and a
+    :class:`~pfbench.methods.Method` code, only as large as the method uses: a fresh page is
+    zero-filled by the operating system on first touch, so a row no pass reads costs nothing."""
+    keeps_weights = method != int(Method.BOOTSTRAP)
+    asir = method == int(Method.ASIR)
+    G, n, n_x = x.shape
+    return Work(np.empty((2, G, n, n_x), x.dtype), np.empty((G, n) if keeps_weights else (G, 0)),
+                np.empty((5 if asir else 3, n)), np.empty(n + n_blocks * ESTIMATE_TILE, np.int64),
+                np.empty((4, n_blocks)), np.empty((2, n_blocks, n_x)), np.empty((2, G), np.int64),
+                np.ascontiguousarray(bounds, dtype=np.int64))
+
+
+def pass_types(*values) -> tuple:
+    """The numba types of a pass's arguments from the objects the host hands the driver (a pass
+    that takes a :class:`Step` gets ``Step()``)."""
+    import numba
+
+    return tuple(numba.typeof(v) for v in values)
