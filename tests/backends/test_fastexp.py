@@ -11,6 +11,8 @@ import pytest
 from pfbench.backends import fastexp, numba_weights
 from pfbench.backends.fastexp import exp_array, exp_scalar
 from pfbench.backends.kernels import build
+from pfbench.backends.particle_work import Step, work_arrays
+from pfbench.methods import Method
 
 
 @numba.njit(error_model="numpy")
@@ -64,7 +66,6 @@ def test_kernels_compile_their_exp_loops_without_the_zero_division_check():
     """numba's default error model guards every float division with a check that raises, which
     stops LLVM from vectorising the exp loop. Catches dropping ``error_model="numpy"`` from a kernel
     that calls the exp."""
-    from pfbench.backends import numba_backend
     import pfbench.models
 
     mod = build("particle", pfbench.models.get("ob1"), "systematic")
@@ -105,11 +106,13 @@ def test_pass_b_exp_loop_uses_plain_loads_and_stores():
     opts = {k: v for k, v in disp.targetoptions.items() if k != "nopython"}
     fresh = numba.njit(**opts)(disp.py_func)  # compiled here: a cache load has no assembly
     n = 64
-    la, cdf = -np.linspace(0.0, 5.0, n), np.empty(n)
+    work = work_arrays(np.zeros((1, n, 1)), 2, np.array([0, 8, n]), int(Method.SIR))
+    work.xs[:] = 0.0
+    work.gstate[:, 0] = (0, 1)
+    la = work.fwork[2]
+    la[:] = -np.linspace(0.0, 5.0, n)
     a = la.copy()
-    xs = np.zeros((n, 1))
-    bsum, bs2, bsx, bsxx = np.empty(1), np.empty(1), np.empty((1, 1)), np.empty((1, 1))
-    fresh(la, 0.0, cdf, xs, 8, n, True, 0, bsum, bs2, bsx, bsxx)
+    fresh(work, Step(0, 0, 1, False, False, 0.0, 0.0))  # block 1: particles [8, n)
     np.testing.assert_array_equal(la[8:], exp_array(a[8:]))  # in place, from the block's start
     np.testing.assert_array_equal(la[:8], a[:8])
     asm = "\n".join(fresh.inspect_asm().values())
