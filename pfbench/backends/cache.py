@@ -3,40 +3,26 @@ package source.
 
 numba's own cache keys a compiled function on *its* source file only, so editing a jitted helper
 in another module (which the cached function inlined) leaves the old machine code in use. pfbench
-therefore installs a numba cache locator for
-
-* every function defined in the installed ``pfbench`` package (a kernel template built for a
-  model, :func:`pfbench.backends.kernels.build`, in a directory of its module's own), and
-* model source files that a kernel compiles (registered by :func:`track_file`),
-
-whose source stamp is :func:`package_fingerprint` (a hash of every ``.py`` file of the package,
-the Python, numba and NumPy versions) combined with the hash of the function's own file. Any edit
-anywhere in the package, or in the model's file, changes the stamp, and numba recompiles instead of
-loading old code. The entries live under ``cache_root() / "numba"`` (``$PFBENCH_CACHE_DIR``, else
-the virtual environment's or the user's cache, see :func:`cache_root`), apart from numba's own
-cache.
+therefore installs a numba cache locator for every function defined in the ``pfbench`` package (a
+kernel template run for a model, :func:`pfbench.backends.kernels.build`, in a directory of its
+module's own) and for model files a kernel compiles (:func:`track_file`), whose source stamp is
+:func:`package_fingerprint` combined with the hash of the function's own file: any edit of the
+package or of the model's file makes numba recompile. The entries live under
+``cache_root() / "numba"``, apart from numba's own cache.
 
 Damaged entries heal themselves. Every function compiled through :func:`njit` gets a
-:class:`HealingFunctionCache` (set on that dispatcher only: numba's classes and the caches of code
-outside pfbench are untouched). An index (``.nbi``) or data (``.nbc``) file that cannot be read or
-unpickled (truncated, empty, garbage, a directory in its place, unreadable), or whose code cannot be
-rebuilt, is removed, reported by one :class:`CacheRepairWarning` line on stderr naming the file, and
-the function is recompiled (and saved again), so the result is that of a clean cache. numba writes
-each file to a temporary name and renames it; pfbench also writes the data file before the index
-entry that points to it and stores the entry's key inside the data file, so a writer killed (or
-racing another process) between the two leaves an entry that is recompiled, never one that loads
-the wrong code.
+:class:`HealingFunctionCache` (on that dispatcher only). An index (``.nbi``) or data (``.nbc``)
+file that cannot be read, unpickled or rebuilt is removed, reported by one
+:class:`CacheRepairWarning` line naming the file, and the function is recompiled and saved again.
+The data file is written before the index entry that points to it and holds the entry's key, so a
+writer killed (or racing another process) between the two leaves an entry that is recompiled,
+never one that loads the wrong code.
 
 :func:`install` runs when ``pfbench`` is imported, before any pfbench module defines a cached
-function.
-
-Compile time. Every array assignment ``a[...] = b`` that numba compiles carries a shape check whose
-CPU error path formats both shapes into the message (f-strings, ``str.join``, ``repr``), and numba
-compiles that unicode code once per process and per pair of ranks: 2.5-5 s of a cold kernel
-compile, for a branch that only runs on a bug. :func:`install` therefore points numba's CPU
-overload of that error path at numba's own target-neutral one, which raises the same
-``ValueError`` with a constant message ("cannot assign slice from input of different size"). The
-compiled arithmetic, and so every result, is unchanged.
+function. It also points numba's CPU overload of the array-assignment shape error at numba's
+target-neutral one (the same ``ValueError`` with a constant message): the CPU one formats both
+shapes, unicode code that costs seconds of every cold compile for a branch that only runs on a
+bug. The compiled arithmetic, and so every result, is unchanged.
 """
 from __future__ import annotations
 
@@ -180,7 +166,7 @@ def _locator_class():
 
 
 class CacheRepairWarning(UserWarning):
-    """A damaged compiled-code cache file (numba entry or generated kernel) was removed and rebuilt."""
+    """A damaged compiled-code cache file was removed and rebuilt."""
 
 
 _REPAIRED: set[str] = set()
@@ -366,9 +352,8 @@ def install() -> None:
 
 def constant_shape_error() -> bool:
     """Make numba's CPU target raise array-assignment shape mismatches with the constant message
-    of its generic target instead of formatting the shapes (which costs seconds of compile time
-    per process, see the module docstring). Returns whether the CPU overload now uses it; False
-    (nothing changed) when this numba version lays the overload out differently."""
+    of its generic target (see the module docstring). Returns whether the CPU overload now uses
+    it; False (nothing changed) when this numba version lays the overload out differently."""
     try:
         from numba.core.typing.templates import builtin_registry
         from numba.np import arrayobj

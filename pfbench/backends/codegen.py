@@ -1,12 +1,10 @@
 """LLVM code-generation settings for everything pfbench compiles.
 
 ``keep_selects`` turns off LLVM's x86 "cmov converter", which rewrites a conditional move inside a
-loop into a branch when the move sits on a loop-carried chain. That guess assumes the branch is
-predictable. In the particle kernels the conditions are data: the running maximum over the
-resampling marks (:func:`pfbench.backends.numba_resampling.merge_gather`), whose new maxima arrive
-wherever the weights put them, compiled to one ``jg`` per particle that mispredicts about as often
-as an ancestor changes. Measured on the Ob1 bootstrap filter (N_p = 1000, 1 thread, median
-marginal ns per particle-step over 7 runs): 15.0-16.0 with the converter, 11.9-12.1 without.
+loop into a branch when the move sits on a loop-carried chain, assuming the branch is predictable.
+In the particle kernels the conditions are data: the running maximum over the resampling marks
+(:func:`pfbench.backends.numba_resampling.merge_gather`) would become one branch per particle that
+mispredicts about as often as an ancestor changes.
 
 The setting is an LLVM command-line option, so it holds for the whole process: every function
 numba compiles after pfbench's backends are loaded, pfbench's or not. It changes how a select is

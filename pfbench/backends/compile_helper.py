@@ -1,38 +1,33 @@
 """A cold kernel compiled on two cores: the model's part in a helper process, the driver here.
 
-A filter kernel that is in no cache is two compiles that do not need each other: the functions
-that inline the model (the particle kernel's pass A: the draws and the model's transition and
-likelihood; the MPF kernel's calls of the model's ``cl_*`` functions) and the driver with the
-model-free passes. The driver calls the model's part through its native entry point
-(:mod:`pfbench.backends.native_call`), so compiling it needs that part's signature, not its
-code. numba compiles one function at a time per process (one global compiler lock), so the two
-run one after the other in one process: for Ob1 about 3.0 s (pass A) and 3.6 s (the driver),
-measured with numba's event recorder on a quiet machine.
+A filter kernel in no cache is two compiles that do not need each other: the functions that
+inline the model (the particle kernel's pass A; the MPF kernel's calls of the model's ``cl_*``
+functions) and the driver with the model-free passes. The driver calls the model's part through
+its native entry point (:mod:`pfbench.backends.native_call`), so compiling it needs that part's
+signature, not its code; and numba compiles one function at a time per process (one global
+compiler lock), so in one process the two would run one after the other.
 
 With two or more usable cores, when the driver and any of those functions are missing from the
 disk cache, :func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`: a new
-Python (``python -c``, with this process's import path, so it imports the same pfbench and model
-module) is handed the model class (by module and name), the kernel family, the tile layout and the
-functions' names and argument types, and compiles those functions into the same disk cache
+Python (``python -c`` with this process's import path, so it imports the same pfbench and model
+module) is handed the model class (by module and name), the kernel family, the tile layout and
+the functions' names and argument types, and compiles them into the same disk cache
 (:mod:`pfbench.backends.cache`) while this process compiles the driver; :meth:`Helper.finish`
-waits for it, and this process then loads the functions from disk.
-
-What the helper takes is the caller's choice (``here`` of
-:func:`pfbench.backends.numba_backend.native_addresses`): the particle kernel hands it pass A,
+waits for it, and this process then loads the functions from disk. What stays here is the
+caller's choice (``here`` of ``native_addresses``): the particle kernel hands the helper pass A,
 the Kalman driver its step math, the MPF driver the model's functions and the wrappers that call
-them, keeping the model-free steps that balance the two cores, a guided run the wrappers of the
+them (keeping the model-free steps that balance the two cores), a guided run the wrappers of the
 model's proposal and weight.
 
-The helper only ever saves time. Whatever goes wrong there (the model's module cannot be
-imported in a new process, a compile error, a crash, a kill) leaves no cache entry, and this
-process compiles the functions itself, raising any error exactly as it would without a helper. A
-damaged entry the helper might leave is healed by the cache like any other. The helper dies with
-this process (:func:`pfbench.procs.die_with_parent`), and it is killed if the driver's compile
+The helper only ever saves time. Whatever goes wrong there (the model's module cannot be imported
+in a new process, a compile error, a crash, a kill) leaves no cache entry, and this process
+compiles the functions itself, raising any error as it would without a helper. The helper dies
+with this process (:func:`pfbench.procs.die_with_parent`) and is killed if the driver's compile
 ends by an interrupt or an error.
 
-Not used: with one usable core (no second core to win), in pfbench's pool workers (the pool
-already uses every core; :func:`pfbench.procs.process_pool`), for a model that numba cannot
-cache on disk or that lives in ``__main__``, and when ``PFBENCH_COMPILE_HELPER=0``.
+Not used: with one usable core, in pfbench's pool workers (the pool already uses every core), for
+a model that numba cannot cache on disk or that lives in ``__main__``, and when
+``PFBENCH_COMPILE_HELPER=0``.
 """
 from __future__ import annotations
 
@@ -115,8 +110,8 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
 
 #: the helper's program: this process's import path, then :func:`_main` with the spec (which
 #: holds numba types: unpickled once the path is set). It ends with ``os._exit``: the cache files
-#: are written and closed by then, and the interpreter's teardown (numba's and LLVM's objects) took
-#: 0.2 s that the waiting process would sit through
+#: are written and closed by then, and the waiting process need not sit through the teardown of
+#: numba's and LLVM's objects
 _BOOT = ("import os, pickle, sys\n"
          "path, spec = pickle.loads(sys.stdin.buffer.read())\n"
          "sys.path[:] = path\n"

@@ -1,18 +1,16 @@
 """Ctrl-C and SIGTERM during a numba compile take effect when the compile ends.
 
 Python delivers a signal to the main thread between two bytecodes, wherever they are. A
-``KeyboardInterrupt`` raised inside numba's compiler (its type inference, its LLVM code generation
-or its cache writer are Python code) leaves numba's and LLVM's state half built: the process then
-fails with an unrelated error ("no compiled object yet for <Library 'run_group'>") or dies with a
-segmentation fault instead of exiting cleanly with 130 and its finished work saved.
+``KeyboardInterrupt`` raised inside numba's compiler (its type inference, code generation and
+cache writer are Python code) leaves numba's and LLVM's state half built: the process then fails
+with an unrelated error ("no compiled object yet for <Library 'run_group'>") or a segmentation
+fault instead of exiting with 130 and its finished work saved.
 
-:func:`defer_during_compiles` makes numba's global compiler lock, which every compile and every
-load from the disk cache holds from start to end, hold SIGINT and SIGTERM back: while the main
-thread holds it, such a signal is only recorded, and when the thread releases the lock (the
-compile is complete and consistent) the handlers that were in place are restored and called,
-so the interrupt arrives at once, in ordinary Python code. A compile takes seconds, so that is
-how late an interrupt can come. Compiles in other threads need nothing: signals are handled in
-the main thread only.
+:func:`defer_during_compiles` makes numba's global compiler lock, held through every compile and
+every load from the disk cache, hold SIGINT and SIGTERM back: while the main thread holds it, such
+a signal is only recorded; when the lock is released (the compile complete and consistent) the
+previous handlers are restored and called, so the interrupt arrives, seconds late at most, in
+ordinary Python code. Other threads need nothing: signals are handled in the main thread only.
 """
 from __future__ import annotations
 

@@ -1,14 +1,12 @@
 """Calling a compiled function through its address, so that the caller does not compile it again.
 
 numba links the LLVM code of every jitted function a jitted caller calls into the caller's own
-module, then optimises and emits the whole module: the particle kernel's driver (compiled per
-model and scheme) recompiled pass A with the model's functions inlined in it, about half of the
-driver's module (see docs/ARCHITECTURE.md, "Compile time"). :func:`caller` gives an intrinsic
-that calls a function that is already compiled through the address of its native entry point
-instead, with numba's own calling convention (the callee's exceptions reach the caller as they would through a direct call), and
-:func:`entry_address` gives that address. The address is an ordinary run-time argument of the
-caller, so the caller's machine code stays disk-cacheable; a call costs an indirect call
-(measured: about 4 ns).
+module, then optimises and emits the whole module again: the particle kernel's driver would
+recompile pass A, the model inlined. :func:`caller` gives an intrinsic that calls an already
+compiled function through the address of its native entry point instead, with numba's own calling
+convention (the callee's exceptions reach the caller as through a direct call), and
+:func:`entry_address` gives that address. The address is an ordinary run-time argument, so the
+caller's machine code stays disk-cacheable; a call costs one indirect call.
 
 The host compiles the callee for exactly the argument types of the call site and passes its
 address (:func:`entry_address` registers those types); the call site, when it is compiled,
@@ -92,8 +90,7 @@ def caller(n_args: int):
     ``address`` (:func:`entry_address` of ``callee`` for these argument types). ``callee`` is the
     jitted function itself, which gives the call its types; it is not compiled into the caller.
     One intrinsic per number of arguments: the arguments pass straight through (a ``*args`` tuple
-    would take and drop a reference to every array at each call, measured at 0.7 ns per
-    particle-step of a 1000-particle filter)."""
+    would take and drop a reference to every array at each call)."""
     with _LOCK:
         if n_args not in _CALLERS:
             names = ", ".join(f"a{i}" for i in range(n_args))

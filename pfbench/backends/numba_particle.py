@@ -1,101 +1,56 @@
 """The numba particle kernel: bootstrap, SIR, SIS and ASIR (and MultiPDF sub-filters) over all steps.
 
-This is the compiled twin of :func:`pfbench.backends.numpy_backend.run_group`: the same steps, the
-same random draws in the same order, the same floating-point operations for everything that feeds
-back into the filter. It calls the model through two module globals, ``_transition`` and
-``_log_likelihood`` (the initial particles come in ``x``, drawn by the caller with the model's
-``initial``, as the NumPy backend draws them). As a file it is importable (they are placeholders here);
-:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of it per (model class,
-resampling scheme) with the model's compiled functions bound to those names and the scheme bound to
-``_resample``/``_SCHEME`` at the end, so numba caches the whole kernel, model inlined, on disk.
+The compiled twin of :func:`pfbench.backends.numpy_backend.run_group`: the same steps, random
+draws in the same order, and the same floating-point operations for everything that feeds back
+into the filter. This file is a template that :func:`pfbench.backends.kernels.build` runs per
+(model class, scheme, tile layout) with the model's compiled functions bound to ``_transition``
+and ``_log_likelihood`` and the scheme to ``_resample``/``_SCHEME``, so numba caches the whole
+kernel, model inlined, on disk. The caller draws the initial particles (the model's ``initial``).
 
 Fused passes (per step and filter; each particle is touched three times)
 -------------------------------------------------------------------------
-A. draw noise + propagate + log-likelihood + a = lw + ll + running max, in tiles of ``_TILE``
-   particles (the model's vectorised ``transition``/``log_likelihood`` run on a tile view, so a
-   model is still written once; tile-by-tile draws are the numbers one big draw gives); the
-   log-weights of the common (bootstrap) step are a branch-free loop and the max keeps four
-   running maxima (:func:`_max`);
-B. w = exp(a - max) in place of the log-weights (a vectorised loop of its own), then the running
-   sum (the cdf) with the weighted sums for the mean, the shifted second moment (shift: the
-   filter's particle 0, so the one-pass variance does not cancel) and sum w^2 (N_eff) riding
-   beside it, in registers (:func:`pfbench.backends.numba_weights.block_weights`);
-C. resampling: systematic and stratified as a merge that writes the resampled particles straight
-   into the second particle buffer (the buffers swap; no index array, no copy back;
-   :func:`pfbench.backends.numba_resampling.merge_gather`); multinomial and residual draw indices
-   (``_resample``) and gather.
-D. ``estimate="post"`` only, at a step that resampled: the unweighted sums of the resampled
-   particles per block (:func:`pfbench.backends.numba_weights.block_moments`), reduced in block
-   order as pass B's sums are, replace the step's ``est``/``var`` ([MultiPDF] Alg. 1 step 6). A
-   fourth touch of the particles that the default ``pre`` never makes.
+A. draw + propagate + log-likelihood + a = lw + ll + running max, in tiles of ``_TILE`` particles
+   (:func:`_pass_a`: the model's vectorised functions run on a tile view, so a model is written
+   once; tile-by-tile draws are the numbers one big draw gives);
+B. w = exp(a - max) in place of the log-weights, then the running sum (the cdf) with the weighted
+   moments and sum w^2 beside it (:func:`pfbench.backends.numba_weights.block_weights`);
+C. systematic and stratified: a merge that writes the resampled particles straight into the other
+   particle buffer (:func:`pfbench.backends.numba_resampling.merge_gather`; the buffers swap);
+   multinomial and residual: indices (``_resample``), then a gather;
+D. ``estimate="post"`` only, at a step that resampled: the unweighted moments of the resampled
+   particles replace ``est``/``var`` ([MultiPDF] Alg. 1 step 6;
+   :func:`pfbench.backends.numba_weights.block_moments`).
 
-Every loop over a block or a tile runs over views that start at 0 (``la[s:e]``, then
-``las[i]``), not over ``range(s, e)`` on the whole array: numba gives a negative index its
-Python meaning (counted from the end), and only for an index LLVM can prove non-negative does it
-drop that test. Indexed from a run-time start, the exponential loop of pass B compiled to AVX-512
-gathers and scatters, and every other access carried three more instructions (measured on Ob1,
-N_p = 1000: 19.3 ns per particle-step with the run-time starts, 15.2 ns with the views). Indices
-read from memory (ancestors) are made unsigned where they are known to be >= 0, for the same
-reason. LLVM's x86 cmov-to-branch conversion is off (:mod:`pfbench.backends.codegen`): it turned
-the merge's running maximum into a data-dependent branch (15.2 ns with it, 12.6 ns without).
-
-What is compiled where. Passes B and C do not call the model: they live in ordinary cached modules
-and are compiled once per process (and loaded from disk after that) for every model and scheme.
-Pass A inlines the model; it does not depend on the scheme, so a scheme's module binds the
-``_pass_a`` of the model's any-scheme module (``SCHEME_FREE`` in
-:mod:`pfbench.backends.numba_backend`), and the schemes of a model share one compilation of it.
-The driver calls all three passes through their native entry points
-(:mod:`pfbench.backends.native_call`), so numba does not compile them (and the model) into the
-driver again: the driver is the loop over steps, filters and blocks. A cold kernel compiles pass
-A in a helper process on a second core meanwhile (:mod:`pfbench.backends.compile_helper`), passes
-B and C here after the driver. Measured (Ob1, fresh caches, one process): the driver 3.8 s with
-passes B and C compiled into it, 1.9 s without (so 1.9 s less for every further model or scheme
-once B and C are on disk); at run time 12.4-12.8 vs 12.2-12.6 ns per particle-step (N_p = 1000,
-marginal cost of 2000 steps), the same within the noise.
+Loops over a block or a tile run over views that start at 0 (``la[s:e]``, then ``las[i]``), so
+LLVM can drop numba's negative-index test; indices read from memory are made unsigned for the same
+reason. Only pass A inlines the model: passes B and C are compiled once for every model and
+scheme, and a model's schemes share one pass A (:attr:`pfbench.backends.kernels.Family.shared`).
+The driver, the loop over steps, filters and blocks, calls the passes through their native entry
+points (:mod:`pfbench.backends.native_call`), so it does not compile them again, and a cold kernel
+compiles pass A in a helper process meanwhile (:mod:`pfbench.backends.compile_helper`).
 
 Stream blocks and threads
 -------------------------
 Particles are split into stream blocks ``[bounds[b], bounds[b + 1])`` of equal size
 (:func:`pfbench.backends.numpy_backend.block_bounds`: one block up to N_p = ``BLOCK`` = 8192, else
 a multiple of 16 blocks, so 2, 4, 8 or 16 threads get equal shares). With one block everything is
-drawn from the filter's own generator in the single-stream order (bit-identical to the unblocked
-kernel). With B > 1 blocks, block b draws its
-transition noise (and stratified uniforms for its output positions) from its own generator
-``brngs[b]``; systematic's one uniform, multinomial/residual draws and the initial particles come
-from the filter's generator. Per-block partial results (max, weight sum, moments) are reduced in
-block order by one thread, and the cdf of block b is ``offset_b + running sum within b``, so the
-numbers depend on (seed, N_p, block layout) only. :func:`run_group` is the serial compilation,
-:func:`run_group_parallel` the same Python function compiled with ``parallel=True`` (its block
-loops are ``prange``): bit-identical results for any thread count.
+drawn from the filter's own generator in the single-stream order. With B > 1 blocks, block b draws
+its transition noise (and stratified uniforms) from its own generator ``brngs[b]``; systematic's
+one uniform, multinomial/residual draws and the initial particles come from the filter's
+generator. Per-block partial results are reduced in block order by one thread, and the cdf of
+block b is ``offset_b + running sum within b``, so the numbers depend on (seed, N_p, block layout)
+only: :func:`run_group` (serial) and :func:`run_group_parallel` (the same function compiled with
+``parallel=True``, its block loops ``prange``) agree bit for bit for any thread count.
 
 float32
 -------
-With float32 particles the noise is drawn as float32 (``standard_normal(..., dtype=float32)``, the
-float32 ziggurat, inlined like the float64 one, stored exactly in the float64 tile the model gets)
-and the particle buffers are float32; the model functions see float64 tiles (the stored, rounded
-states, converted into a buffer allocated once per pass) and their results are rounded to float32
-when stored, the rounded values kept in float64 for the log-likelihood in the same loop; weights,
-log-likelihood sums and moments stay float64. Why not float32 arithmetic: the models are written
-with Python float literals (``0.5 * x``) and float64 parameters, which numba types as float64
-whatever the array dtype (measured: ``float32 array * 0.5`` is a float64 array in numba, float32
-in NumPy >= 2), so a float32 model evaluation would differ between the backends and gain nothing
-inside numba; computing in float64 and storing float32 keeps the backends in agreement. What
-float32 then buys is half the particle memory and a float32 draw; what it costs is the tile
-conversions. Measured (``pfbench bench``'s float32 vs float64 kernel parts, Ob1 bootstrap, 1
-thread, N_p = 10^5, paired per round, 2-core AVX-512 Xeon): draws 3.6 vs 3.7 ns (the ziggurat's
-table lookups and rejection test cost the same in both widths, and the 128-bit PCG64 step that
-float32 halves is not the bottleneck), tile in/out 0.4 vs 0.7, model 2.8 vs 2.6, pass B 2.8 vs
-3.1 (the moments convert the stored states), whole filter 12.9 vs 13.9 ns per particle-step
-(0.93x: the faster the float64 kernel, the more the conversions weigh; 1.04x when it took 22 ns).
-The step is bound by arithmetic and branches, not by memory (10^5 float64 particles are 0.8 MB,
-cache-resident), so halving storage cannot pay more until the models are written dtype-generic
-(float32 literals), as the Cortex-M compiler already does for ``--precision float``
-(:mod:`pfbench.mcu.modelcode`). Even then the backends would part: numba's float32 ``exp`` and
-``cos`` are LLVM's, NumPy's its own SIMD routines, and on 10^6 inputs (uniform in [-20, 5]) they
-differ in 39 % of the ``exp`` results (up to 2 ulp) and 17 % of the ``cos`` results (1 ulp),
-where float64 ``cos`` agrees on all of them (the weights' float64 ``exp``, which differs in 5 %,
-is the engine's own :mod:`pfbench.backends.fastexp` in both backends). A differing ulp can move a
-resampling decision, after which the two runs draw different particles.
+The particle buffers are float32 and the noise is drawn as float32 (NumPy's float32 ziggurat,
+stored exactly in the float64 tile the model gets); the model computes in float64 on the stored,
+rounded states, and its results are rounded to float32 when stored; weights, log-likelihood sums
+and moments stay float64. Why not float32 arithmetic: numba types the models' Python float
+literals and float64 parameters as float64 whatever the array dtype, where NumPy >= 2 keeps
+float32, so the backends would differ. float32 buys half the particle memory and a float32 draw,
+and costs the tile conversions.
 """
 import numba as _numba
 import numpy as _np
@@ -125,10 +80,8 @@ _BOOTSTRAP = int(_Method.BOOTSTRAP)
 _SIR = int(_Method.SIR)
 _SYSTEMATIC = int(_Scheme.SYSTEMATIC)  # the schemes the merge serves
 _STRATIFIED = int(_Scheme.STRATIFIED)
-#: particles per tile of the fused pass A (the tile's noise, new states and likelihoods stay in L1/L2).
-#: Each tile allocates the model's result arrays (and frees them), a fixed cost per tile: measured
-#: on Ob1, 1 thread, N_p = 1000, marginal cost of 2000 steps, 12.2 ns per particle-step with tiles
-#: of 512, 11.8-11.9 with 1024; 2048 and 4096 within the noise of 1024 (8 KB per float64 column)
+#: particles per tile of the fused pass A: the tile's noise, new states and likelihoods stay in
+#: L1/L2, and the model's result arrays, allocated per tile, are a fixed cost per tile
 _TILE = 1024
 _prange = _numba.prange
 #: pass A called through its address (:mod:`pfbench.backends.native_call`)
@@ -176,9 +129,8 @@ def _column_major(typingctx, a):
 
     An (n, 1) contiguous array is both row- and column-major, but numba lowers an array expression
     over a C array as two nested loops with the trailing axis (length 1) innermost, and LLVM
-    vectorises inner loops only: the model's arithmetic then runs one particle at a time (Ob1's
-    transition: 2.2 ns per particle on (512, 1) C tiles, 0.6 ns on the same memory typed 'F', same
-    bits). Typed 'F', the rows are the inner loop. Only valid for a trailing axis of length 1.
+    vectorises inner loops only, so the model's arithmetic would run one particle at a time. Typed
+    'F', the rows are the inner loop. Only valid for a trailing axis of length 1.
     """
     if not isinstance(a, _types.Array) or a.ndim != 2 or a.layout != "C":
         return None

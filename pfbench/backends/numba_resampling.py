@@ -23,9 +23,9 @@ _STRATIFIED = int(Scheme.STRATIFIED)
 ESTIMATE_TILE = 512
 
 
-
 @njit(nogil=True)
 def cumsum_into(w, cdf):
+    """cdf = the running sum of ``w`` (NumPy's ``cumsum`` order); returns the total."""
     acc = 0.0
     for i in range(w.shape[0]):
         acc += w[i]
@@ -43,7 +43,7 @@ def _position(ui, i, n, total):
 @register_jitable
 def _nonneg(i):
     """An index known to be >= 0 (a particle index read from memory), as unsigned: numba then
-    drops the negative-index wraparound (three more instructions on every such access)."""
+    drops the negative-index wraparound test."""
     return np.uint64(i)
 
 
@@ -65,8 +65,8 @@ def _merge(cdf, n, start_u, stride_u, idx):
 def _search_right(cdf, n, value):
     """Smallest j with cdf[j] > value (n - 1 if none): ``np.searchsorted(cdf, value, "right")``
     on the sorted ``cdf``, written out because numba's generic searchsorted (NaN-aware comparisons
-    typed for complex numbers too) cost 0.5 s of a cold compile. The comparison is NumPy's sort
-    order (NaN above everything), so the result is NumPy's for every input."""
+    typed for complex numbers too) is slow to compile. The comparison is NumPy's sort order (NaN
+    above everything), so the result is NumPy's for every input."""
     lo = 0
     hi = cdf.shape[0]
     while lo < hi:
@@ -137,6 +137,8 @@ def _decreasing_order(v):
 
 @njit(nogil=True, inline="always")
 def residual_into(w, total, rng, idx, deterministic):
+    """Residual resampling of ``w`` (sum ``total``) into ``idx``: floor(N w_i / total) copies each,
+    the remainder to the largest residuals (``deterministic``) or drawn multinomially."""
     n = w.shape[0]
     counts = np.empty(n, np.int64)
     res = np.empty(n)
@@ -157,13 +159,10 @@ def residual_into(w, total, rng, idx, deterministic):
 
 # One kernel per scheme with the common signature ``(code, w, cdf, rng, idx)``: ``cdf`` is the
 # running sum of the unnormalised weights ``w``, ``code`` the scheme's :class:`Scheme` code (read by
-# :func:`any_scheme` only). A filter kernel is compiled with the one its call uses
-# (:func:`pfbench.backends.numba_backend.kernel_module` binds it to the kernel's ``_resample``), so a
-# run never compiles the schemes it does not use; ``any_scheme`` serves callers that pick the
-# scheme at run time. On a cold cache every compiled function costs a fixed ~0.2-0.4 s and its
-# caller optimises its machine code once more, so the scheme kernels and their loops are inlined
-# into the caller (``inline="always"``: one compilation of the whole filter kernel) and call the
-# shared loops (``_merge``, ``residual_into``) directly, without wrappers.
+# :func:`any_scheme` only). :func:`pfbench.backends.kernels.build` binds the one a run uses to the
+# kernel's ``_resample``, so a run never compiles the others; ``any_scheme`` serves callers that
+# pick the scheme at run time. Every compiled function is a fixed cost of a cold compile, so the
+# kernels and their loops are inlined into the caller (``inline="always"``).
 @njit(nogil=True, inline="always")
 def systematic(code, w, cdf, rng, idx):
     """[Thesis] Alg. 4 / [Embedded] Alg. 1 step 5: one uniform, N evenly spaced pointers."""
@@ -231,12 +230,11 @@ def merge_gather(work, settings, step):
     Output i takes ancestor a(i) = the smallest j with cdf[j] > position_i (n - 1 if none), where
     position_i = (u_i + i) / n * total (u_i = u, or ``ub[i - i0]`` when stratified): the operations
     of :mod:`pfbench.resampling`. A sequential merge walks j with two data-dependent branches per
-    particle, which mispredict when the weights are uneven (measured on Ob1: 10 ns per particle of
-    a 28 ns step). Here the walk is branch-free: positions increase with i, so the outputs whose
-    ancestor is <= j are the prefix [0, K_j) with K_j = #{i : position_i < cdf[j]}; output K_j is
-    marked as starting ancestor j + 1 (a later, zero-weight j overwrites the same mark), and a
-    running maximum over the marks gives a(i). Same ancestors as the merge for any weights (tested
-    against it).
+    particle, which mispredict when the weights are uneven. Here the walk is branch-free: positions
+    increase with i, so the outputs whose ancestor is <= j are the prefix [0, K_j) with K_j =
+    #{i : position_i < cdf[j]}; output K_j is marked as starting ancestor j + 1 (a later,
+    zero-weight j overwrites the same mark), and a running maximum over the marks gives a(i). Same
+    ancestors as the merge for any weights (tested against it).
 
     K_j comes from x_j = cdf[j] n / total - shift (shift = u; stratified: 0.5) as floor(x_j) + 1, in
     tiles of ``ESTIMATE_TILE`` j in a loop of their own, which vectorises (``error_model="numpy"``:
@@ -251,10 +249,7 @@ def merge_gather(work, settings, step):
       farther than that from every integer compares with every i as the exact test does: K_j =
       floor(x_j) + 1. The fraction x_j - floor(x_j) is exact for x_j >= 0 and within 2^-54 for
       -1 < x_j < 0 (x_j >= -u), which ``tol``, twice the bound, leaves room for. A tile with no
-      x_j that close (on Ob1: every tile) needs no positions at all. Measured (Ob1 bootstrap,
-      N_p = 1000, marginal cost of 2000 steps, two alternating runs each): the whole filter
-      12.4-12.8 ns per particle-step, 14.4-14.9 ns when every tile takes the positions and the
-      exact corrections below.
+      x_j that close needs no positions at all.
     * Stratified (the positions carry their own uniforms, so the count is only within one), and a
       systematic tile with an x_j near an integer: the block's positions are computed into ``pos``
       [i0, i1) and each estimate is corrected by exact comparisons with them.
@@ -340,6 +335,8 @@ def merge_gather(work, settings, step):
 
 @njit(nogil=True)
 def gather(idx, i0, i1, src, dst, lam_src, lam_dst, with_lam):
+    """dst[i] = src[idx[i]] for i in [i0, i1) (and ``lam_dst[i] = lam_src[idx[i]]`` when
+    ``with_lam``): pass C of the particle kernel after an index scheme."""
     n_x = src.shape[1]
     for i in range(i0, i1):
         j = idx[i]

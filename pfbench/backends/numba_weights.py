@@ -96,30 +96,22 @@ def block_weights(work, step):
     (``m = step.m``), the block's running sum (cdf), and, except in ASIR's first stage, the block's
     sums of w x, w (x - x_0)^2 and w^2 ([Thesis] eq. 2.14 for N_eff).
 
-    In place: the weights overwrite the cache lines just read, where a row of their own was one
-    more array streamed through the caches every step (measured on Ob1 bootstrap, 1 thread, N_p =
-    10^6, marginal cost of 10 steps: 13.6 -> 13.3 ns per particle-step; no change at N_p = 1000,
-    where every row stays in L1/L2). A single array also keeps the loop free of the run-time
-    overlap test LLVM puts in front of a vectorised loop over two arrays that may alias.
+    In place: the weights overwrite the cache lines just read, one array fewer streamed through
+    the caches every step, and a loop over one array needs no run-time overlap test in front of
+    its vectorised body.
 
-    Two kinds of loop over the block, each as fast as its dependences allow:
-
-    * the exponentials, a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
+    * The exponentials are a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
       LLVM vectorises; ``error_model="numpy"``: numba's zero-division check would stop the
-      vectoriser);
-    * the running sum, the one strictly sequential chain (the cdf feeds the resampling, so it is
-      the NumPy reference's ``cumsum`` order, one add after the other). It waits one add's latency
-      per particle, so the other sums ride along in the same loop for free: sum w^2 and the first
-      state component's two moment sums (measured on Ob1, N_p = 1000: pass B 3.6 ns per
-      particle-step with the moments in a loop of their own, 2.9 ns beside the running sum). Each
-      sum is a register, never the ``bsx`` array (a sum accumulated in memory waits on a store and
-      a reload every particle: 8.6 ns). Further components get a pass of their own with four
-      partial sums (:func:`_sums4`). The moments feed nothing back (estimates only), so their
-      order is free.
+      vectoriser).
+    * The running sum is the one strictly sequential chain (the cdf feeds the resampling, so it
+      is the NumPy reference's ``cumsum`` order). It waits one add's latency per particle, so
+      sum w^2 and the first state component's two moment sums ride along in the same loop for
+      free, each in a register (a sum accumulated in the ``bsx`` array would wait on a store and a
+      reload every particle). Further components get a pass of their own with four partial sums
+      (:func:`_sums4`). The moments feed nothing back (estimates only), so their order is free.
 
-    The loops run over views of the block that start at 0 (see "Fused passes" in
-    :mod:`pfbench.backends.numba_particle`): indexed from the run-time ``i0``, the exponentials
-    compiled to gathers and scatters.
+    The loops run over views of the block that start at 0 (see
+    :mod:`pfbench.backends.numba_particle`).
     """
     xs = work.xs[work.gstate[0, step.g], step.g]
     b = step.b

@@ -34,7 +34,7 @@ class Outputs(NamedTuple):
 
 class Work(NamedTuple):
     """The kernel's work arrays (:func:`work_arrays`), allocated by the host: every array
-    constructor compiled into a kernel is another 0.1 s of a cold start."""
+    constructor compiled into a kernel adds to a cold start."""
 
     #: (2, G, N_p, n_x) in the particle dtype: the two particle buffers (resampling writes the
     #: other one, and they swap)

@@ -1,27 +1,25 @@
 """NumPy's PCG64 generator and standard-normal ziggurat, inlined into numba code: the same numbers.
 
 Every particle of a bootstrap step draws one standard normal ([Embedded] Alg. 1 step 2), and the
-engine's random numbers are NumPy's (``numpy.random.default_rng``: the PCG64 bit generator and the
-256-layer ziggurat of ``Generator.standard_normal``), so that the NumPy and numba backends run on
-common random numbers. numba's own ``Generator.standard_normal`` reaches the bit generator through
-a function pointer for every 64-bit word: an opaque call per draw, which keeps the 128-bit state in
+engine's random numbers are NumPy's (``numpy.random.default_rng``: PCG64 and the 256-layer
+ziggurat of ``Generator.standard_normal``), so that the NumPy and numba backends run on common
+random numbers. numba's own ``Generator.standard_normal`` reaches the bit generator through a
+function pointer for every 64-bit word: an opaque call per draw, which keeps the 128-bit state in
 memory and the ziggurat out of the kernel's optimiser. This module runs the same algorithm with
 the state in registers:
 
-* :func:`normals_into` loads the generator's 128-bit PCG64 state from NumPy's own state struct
-  (through numba's handle on the bit generator), advances it inline
-  (state = state * multiplier + increment, output XSL-RR:
-  rotr64(high ^ low, state >> 122), as ``pcg_setseq_128_xsl_rr_64_random_r`` in NumPy), runs
-  NumPy's float64 ziggurat (``random_standard_normal`` with numba's copy of NumPy's tables) and
-  stores the state back, so any later draw, by numba or by NumPy, continues the same stream;
-* :func:`normals_into_f32` does the same for ``standard_normal(dtype=np.float32)`` (NumPy's float32
+* :func:`normals_into` loads the 128-bit PCG64 state from NumPy's own state struct, advances it
+  inline (state * multiplier + increment, output XSL-RR: rotr64(high ^ low, state >> 122), as
+  NumPy's ``pcg_setseq_128_xsl_rr_64_random_r``), runs NumPy's float64 ziggurat
+  (``random_standard_normal``, numba's copy of NumPy's tables) and stores the state back, so any
+  later draw, by numba or NumPy, continues the stream;
+* :func:`normals_into_f32` does the same for ``standard_normal(dtype=np.float32)`` (the float32
   ziggurat on 32-bit words, two per PCG64 step, the spare half buffered in the state struct);
-* :func:`fill_normals`, :func:`fill_normals_f32` (float32 draws into a float32 or float64 array)
-  and :func:`fill_uniforms` (``Generator.random``: NumPy's ``next_double``) are what compiled code
-  calls: the inlined draws, or numba's own where :func:`layout_ok` says no;
-* :func:`layout_ok` checks once per process, from Python, that NumPy's PCG64 state struct is laid
-  out as this module reads it (a pointer to two little-endian 128-bit integers, the build with a
-  native 128-bit type); if not, the kernels keep numba's own draws (the same numbers, slower).
+* :func:`fill_normals`, :func:`fill_normals_f32` and :func:`fill_uniforms` (``Generator.random``)
+  are what compiled code calls: the inlined draws, or numba's own where :func:`layout_ok` says no;
+* :func:`layout_ok` checks once per process that NumPy's state struct is laid out as this module
+  reads it (a pointer to two little-endian 128-bit integers); if not, the kernels keep numba's
+  own draws (the same numbers, slower).
 
 Only PCG64 generators may be passed (:func:`check_generators`).
 """
@@ -171,7 +169,7 @@ def normals_into(gen, out):
             r = r >> np.uint64(8)
             rabs = (r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF)
             # rabs < 2^52: the signed conversion is exact and cheap; the sign is flipped by bits, not
-            # by a branch (a random sign mispredicts half the time: 3 of 7.7 ns per draw, measured)
+            # by a branch (a random sign mispredicts half the time)
             x = _from_bits(_bits(np.float64(np.int64(rabs)) * wi_double[idx]) ^ (np.int64(r & np.uint64(1)) << 63))
             if rabs < ki_double[idx]:
                 break
