@@ -61,8 +61,9 @@ a multiple of 16 blocks, so 2, 4, 8 or 16 threads get equal shares). With one bl
 drawn from the filter's own generator in the single-stream order (bit-identical to the unblocked
 kernel). With B > 1 blocks, block b draws its
 transition noise (and stratified uniforms for its output positions) from its own generator
-``brngs[b]``; systematic's one uniform, multinomial/residual draws and the initial particles come
-from the filter's generator. Per-block partial results (max, weight sum, moments) are reduced in
+``brngs[b]`` (which first gave block b's initial particles,
+:func:`pfbench.backends.numpy_backend.draw_initial`); systematic's one uniform and the
+multinomial/residual draws come from the filter's generator. Per-block partial results (max, weight sum, moments) are reduced in
 block order by one thread, and the cdf of block b is ``offset_b + running sum within b``, so the
 numbers depend on (seed, N_p, block layout) only. :func:`run_group` is the serial compilation,
 :func:`run_group_parallel` the same Python function compiled with ``parallel=True`` (its block
@@ -408,8 +409,8 @@ def _run_group(p, rng, brngs, y, u, x, n_noise, method, scheme, ess_threshold, b
     """Run a group of G independent filters over all steps (random streams in documented order).
 
     x: (G, n, n_x) particle buffer (its dtype is the particle dtype) that receives the final
-    particles; the initial particles (the model's ``initial``, drawn by the caller from ``rng``,
-    filter after filter) come in the first of the two buffers ``xs[0]``; outputs (G, M, ...).
+    particles; the initial particles (the model's ``initial``, drawn by the caller:
+    :func:`pfbench.backends.numpy_backend.draw_initial`) come in the first of the two buffers ``xs[0]``; outputs (G, M, ...).
     rng: the group's generator; brngs: a list of the B block generators (``[rng]`` when B = 1);
     bounds: (B + 1,) block starts, then n. hist_x (G, M, n, n_x), hist_w (G, M, n): the weighted
     particles of every step (before resampling) when their second dimension
