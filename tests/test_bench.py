@@ -277,6 +277,39 @@ def test_scaling_pairs_the_thread_runs_within_rounds(monkeypatch):
     assert "N_p=10^3: 2.00x (rounds 1.00-3.00x)" in "\n".join(scaling.text(res))
 
 
+
+def test_end_to_end_pairs_whole_runs_and_splits_off_the_quiet_rounds(monkeypatch):
+    """``end_to_end`` times whole run_filter calls, 1 thread then k threads in each round, and gives
+    the speed-up over all rounds and over the quiet ones. Scripted: run_filter calls take no time,
+    the clock advances by the scripted seconds (1 thread 10, 30, 10; 2 threads 5, 10, 10) and
+    other processes are busy in round 2 only. Catches a speed-up that is a ratio of medians, the
+    engines not alternating, or a busy round kept among the quiet ones."""
+    import time as _time
+
+    from pfbench import filters
+
+    clock = [0.0]
+    script = {1: [10.0, 30.0, 10.0], 2: [5.0, 10.0, 10.0]}
+    calls = []
+
+    def fake_run(model, y, u, seed=0, n_threads=None, **kw):
+        if y.shape[0] == 3:  # the warm-up
+            return None
+        calls.append(n_threads)
+        clock[0] += script[n_threads][sum(1 for c in calls if c == n_threads) - 1]
+
+    busy = iter([0.0, 0.0, 0.0, 100.0, 100.0, 100.0])  # round 2: others used every core
+    monkeypatch.setattr(filters, "run_filter", fake_run)
+    monkeypatch.setattr(_time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr(_time, "process_time", lambda: 0.0)
+    monkeypatch.setattr(scaling, "_busy_s", lambda: next(busy))
+    res = scaling.end_to_end(n=1000, steps=12, rounds=3, threads=2)
+    assert calls == [1, 2] * 3
+    assert res["speedup"] == pytest.approx(2.0) and res["speedup_rounds"] == pytest.approx([1.0, 3.0])
+    assert res["quiet_rounds"] == 2 and res["quiet_speedup"] == pytest.approx(1.5)  # rounds 1 and 3
+    assert "speed-up 2.00x" in scaling.end_to_end_text(res)
+
+
 # --------------------------------------------------------------------------- startup
 def test_startup_cases_use_models_that_declare_the_structure():
     """mpf needs a model with linear and nonlinear states, guided one with a proposal, kalman one

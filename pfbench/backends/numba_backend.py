@@ -82,8 +82,9 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = build("particle", model, scheme)
     work = work_arrays(x, bounds.shape[0] - 1, bounds, int(method))
-    # in NumPy, as the NumPy backend, straight into the kernel's first particle buffer
-    draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0])
+    # in NumPy, as the NumPy backend, straight into the kernel's first particle buffer (block by
+    # block on the run's threads above one block: the draw and its first touch of the buffer)
+    draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0], brngs, n_threads)
     out = Outputs(x, est, var, ess, inc, resampled, degen, hist_x, hist_w)
     settings = Settings(int(model.n_noise), int(method), int(scheme), float(ess_threshold),
                         Estimate.parse(estimate) == Estimate.POST, 0, 0, 0)

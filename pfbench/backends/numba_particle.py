@@ -35,12 +35,13 @@ Particles are split into stream blocks ``[bounds[b], bounds[b + 1])`` of equal s
 (:func:`pfbench.backends.numpy_backend.block_bounds`: one block up to N_p = ``BLOCK`` = 8192, else
 a multiple of 16 blocks, so 2, 4, 8 or 16 threads get equal shares). With one block everything is
 drawn from the filter's own generator in the single-stream order. With B > 1 blocks, block b draws
-its transition noise (and stratified uniforms) from its own generator ``brngs[b]``; systematic's
-one uniform, multinomial/residual draws and the initial particles come from the filter's
-generator. Per-block partial results are reduced in block order by one thread, and the cdf of
-block b is ``offset_b + running sum within b``, so the numbers depend on (seed, N_p, block layout)
-only: :func:`run_group` (serial) and :func:`run_group_parallel` (the same function compiled with
-``parallel=True``, its block loops ``prange``) agree bit for bit for any thread count.
+its initial particles (:func:`pfbench.backends.numpy_backend.draw_initial`), its transition noise
+and its stratified uniforms from its own generator ``brngs[b]``; systematic's one uniform and the
+multinomial/residual draws come from the filter's generator. Per-block partial results are
+reduced in block order by one thread, and the cdf of block b is ``offset_b + running sum within
+b``, so the numbers depend on (seed, N_p, block layout) only: :func:`run_group` (serial) and
+:func:`run_group_parallel` (the same function compiled with ``parallel=True``, its block loops
+``prange``) agree bit for bit for any thread count.
 
 float32
 -------

@@ -3,7 +3,8 @@
 :func:`run_group` runs G independent particle filters (a MultiPDF group, or one filter) over
 all steps, drawing every random number from one ``numpy.random.Generator`` in this order:
 
-1. initial particles of filter 0, 1, ..., G-1 (the model's ``initial``);
+1. initial particles of filter 0, 1, ..., G-1 (the model's ``initial``; with several stream
+   blocks, from the block streams instead, below);
 2. per step t, per filter g in order:
    a. ASIR only: the first-stage resampling draws;
    b. transition noise, ``rng.standard_normal((n, n_noise), dtype=particle dtype)``;
@@ -11,10 +12,13 @@ all steps, drawing every random number from one ``numpy.random.Generator`` in th
 
 Stream blocks: particles are split into :func:`n_blocks` blocks of equal size (:func:`block_bounds`):
 one up to N_p = :data:`BLOCK`, else a multiple of 16 blocks of at most BLOCK particles, so that
-2, 4, 8 or 16 threads get equal work. With one block the order above is all there is. With B > 1 blocks, the transition noise of block b (and the
-stratified uniforms of output block b) come from block b's own generator (:func:`block_streams`),
-drawn block after block; the initial particles, systematic's one uniform and the multinomial and
-residual draws come from the filter's generator. Weight running sums restart per block and add
+2, 4, 8 or 16 threads get equal work. With one block the order above is all there is. With B > 1 blocks, block b's own generator
+(:func:`block_streams`) draws, in this order, block b's initial particles of filter 0, 1, ..., G-1
+(:func:`draw_initial`), then per step the transition noise of block b (and the stratified uniforms
+of output block b), block after block; systematic's one uniform and the multinomial and residual
+draws come from the filter's generator, which the initial draw leaves untouched. Every block
+stream is its own, so the blocks' initial draws can run on several threads in any order
+(:func:`draw_initial`, :func:`run_shares`). Weight running sums restart per block and add
 the block's offset, and block totals are added in block order, so the numbers depend on the seed and
 N_p, never on how many threads run the numba kernel.
 
@@ -31,6 +35,10 @@ with zero noise).
 (particle, marginalized, guided) calls it.
 """
 from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -144,11 +152,77 @@ def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
     return np.minimum(np.searchsorted(cdf, positions, side="right"), n - 1)
 
 
-def draw_initial(initial, p, rng, x) -> None:
-    """x[g] = initial(rng, N_p, p) for g = 0, 1, ..., G-1: the initial particles of a group, filter
-    after filter from the group's stream (step 1 of the documented draw order; both backends)."""
-    for g in range(x.shape[0]):
-        x[g] = initial(rng, x.shape[1], p)
+def draw_initial(initial, p, rng, x, brngs=None, n_threads: int | None = 1) -> None:
+    """The initial particles of a group into ``x`` (G, N_p, n_x), in the documented draw order (step 1;
+    both backends call this, so they start from the same particles).
+
+    One block (``brngs`` None or of length 1): x[g] = initial(rng, N_p, p) for g = 0, 1, ..., G-1,
+    from the group's stream. B > 1 blocks: block b of every filter, x[g, block b] =
+    initial(brngs[b], size of block b, p) for g = 0, ..., G-1, from block b's own stream, so a
+    block's particles depend on its stream alone and the blocks can be drawn in any order.
+
+    Why per block: at large N_p the draw and the first touch of ``x`` (the operating system zero-fills
+    every fresh page) are a large part of a short run; per-block streams let ``n_threads`` threads
+    (None: :func:`pfbench.procs.free_cores`) share them, each drawing a contiguous run of blocks,
+    the numbers still those of the serial draw. NumPy's generators and ufuncs release the GIL
+    while they fill an array, so the threads overlap; a model's ``initial`` that holds it only
+    loses the overlap. Block b spans ``[(b N_p) // B, ((b + 1) N_p) // B)``, :func:`block_bounds`.
+    """
+    G, n = x.shape[0], x.shape[1]
+    nb = 1 if brngs is None else len(brngs)
+    if nb == 1:
+        for g in range(G):
+            x[g] = initial(rng, n, p)
+        return
+    bounds = (np.arange(nb + 1, dtype=np.int64) * n) // nb
+
+    def share(lo: int, hi: int) -> None:
+        for b in range(lo, hi):
+            a, c = int(bounds[b]), int(bounds[b + 1])
+            for g in range(G):
+                x[g, a:c] = initial(brngs[b], c - a, p)
+
+    run_shares(share, nb, n_threads)
+
+
+_POOL: tuple | None = None  # (process id, executor): the helper threads of run_shares
+_POOL_LOCK = threading.Lock()
+
+
+def _helpers():
+    """The process's helper-thread pool (a new one after a fork: a child has none of the parent's
+    threads)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None or _POOL[0] != os.getpid():
+            _POOL = (os.getpid(), ThreadPoolExecutor(max_workers=max(os.cpu_count() or 1, 1),
+                                                     thread_name_prefix="pfbench-setup"))
+        return _POOL[1]
+
+
+def run_shares(share, n_items: int, n_threads: int | None = 1) -> None:
+    """``share(lo, hi)`` over items ``0 .. n_items - 1`` split into k = min(``n_threads``, ``n_items``)
+    contiguous runs (None: :func:`pfbench.procs.free_cores`), the first on this thread and the others
+    on helper threads; returns when all are done, raising the first error. The runs are the ones a
+    static schedule of k numba threads gives the block loops, so a block's pages are first touched
+    on the thread that works on them."""
+    if n_threads is None:
+        from ..procs import free_cores
+
+        n_threads = free_cores()
+    k = max(1, min(int(n_threads), n_items))
+    if k == 1:
+        share(0, n_items)
+        return
+    cuts = [(j * n_items) // k for j in range(k + 1)]
+    pool = _helpers()
+    futures = [pool.submit(share, cuts[j], cuts[j + 1]) for j in range(1, k)]
+    try:
+        share(cuts[0], cuts[1])
+    finally:
+        wait(futures)
+    for f in futures:
+        f.result()
 
 
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
@@ -175,7 +249,7 @@ def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: f
     n_noise = model.n_noise
     logn = np.log(n)
     lw = np.full((G, n), -logn)
-    draw_initial(initial, p, rng, x)
+    draw_initial(initial, p, rng, x, brngs)
     for t in range(y.shape[0]):
         yt, ut = y[t], u[t]
         for g in range(G):

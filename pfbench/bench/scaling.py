@@ -14,7 +14,9 @@ each after its own 3-step warm-up), and their speed-up is the median of the per-
 (:func:`pfbench.bench.timing.paired_ratio`): two medians taken one after the other can compare a
 fast phase of a shared machine with a slow one. Each time is a whole run, set-up included
 (allocating and first touching the work arrays, the block streams, the initial particles): at
-N_p = 10^6 that is about 13 ms, about one step on 1 thread.
+N_p = 10^6 that is about 13 ms, about one step on 1 thread. :func:`end_to_end` times what a caller
+waits for, whole :func:`pfbench.run_filter` calls of a short run at large N_p on 1 and k threads,
+the case where a serial set-up caps the speed-up.
 """
 from __future__ import annotations
 
@@ -264,3 +266,81 @@ def text(res: dict) -> list[str]:
     out.append(f"numba all threads vs 1 thread (median of per-round ratios): {sp}")
     out.extend(fmt(t) for t in res["targets"])
     return out
+
+
+def _busy_s() -> float | None:
+    """CPU seconds every process has used since boot (``/proc/stat``; None without it)."""
+    import os
+
+    try:
+        with open("/proc/stat") as f:
+            fields = f.readline().split()[1:]
+    except OSError:
+        return None
+    idle = int(fields[3]) + int(fields[4])  # idle, iowait
+    return (sum(int(v) for v in fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+def end_to_end(n: int = 10 ** 6, steps: int = 12, rounds: int = 9, threads: int = 2,
+               method: str = "bootstrap", quiet: float = 0.05) -> dict:
+    """Wall time of whole :func:`pfbench.run_filter` calls (Ob1, numba, float64) on 1 and on
+    ``threads`` threads, paired in ``rounds`` interleaved rounds (:func:`pfbench.bench.timing.interleaved`).
+
+    Why beside the table above: a short run at large N_p pays its set-up (the block streams, the
+    initial draw, first touch of the work arrays, the output arrays, the checks) once, so its
+    speed-up from threads is below the per-step one unless the set-up runs on the threads too; this
+    times everything the caller waits for, where ``elapsed_s`` leaves out what precedes the kernel
+    call. A round is quiet when the CPU time other processes used during it is below ``quiet`` of
+    its wall time (``/proc/stat`` less this process): one busy core halves a 2-thread run's speed,
+    so the speed-up is also given over the quiet rounds alone. Returns the per-round seconds and
+    others' CPU fraction, the medians and the median per-round ratios."""
+    import time
+
+    from .. import models
+    from ..filters import run_filter
+    from .timing import paired_ratio, ratio_range
+
+    model = models.get("ob1")
+    traj = model.simulate(steps, seed=1)
+    kw = dict(method=method, n_particles=int(n), backend="numba", dtype="float64")
+    for k in (1, threads):  # compile / warm up outside the rounds
+        run_filter(model, traj.y[:3], None, seed=0, n_threads=k, **kw)
+    one, many, others = [], [], []
+    for _ in range(max(int(rounds), 1)):
+        b0, c0, w0 = _busy_s(), time.process_time(), time.perf_counter()
+        for k, dest in ((1, one), (threads, many)):
+            t0 = time.perf_counter()
+            run_filter(model, traj.y, None, seed=0, n_threads=k, **kw)
+            dest.append(time.perf_counter() - t0)
+        b1, c1, w1 = _busy_s(), time.process_time(), time.perf_counter()
+        others.append(None if b0 is None else max(0.0, (b1 - b0) - (c1 - c0)) / (w1 - w0))
+    calm = [r for r, o in enumerate(others) if o is not None and o < quiet]
+    res = {"particles": int(n), "steps": int(steps), "threads": int(threads), "rounds": len(one),
+           "s_1_thread": one, "s_threads": many, "others_cpu_fraction": others,
+           "median_s_1_thread": statistics.median(one), "median_s_threads": statistics.median(many),
+           "speedup": paired_ratio(one, many), "speedup_rounds": ratio_range(one, many),
+           "quiet_rounds": len(calm)}
+    if calm:
+        q1, qk = [one[r] for r in calm], [many[r] for r in calm]
+        res.update(quiet_median_s_1_thread=statistics.median(q1), quiet_median_s_threads=statistics.median(qk),
+                   quiet_speedup=paired_ratio(q1, qk), quiet_speedup_rounds=ratio_range(q1, qk))
+    return res
+
+
+def end_to_end_text(res: dict) -> str:
+    """The lines for :func:`end_to_end`'s result."""
+    k = res["threads"]
+    lo, hi = res["speedup_rounds"]
+    out = [f"end to end, Ob1 numba float64, N_p = {_pow10(res['particles'])}, M = {res['steps']}, "
+           f"{res['rounds']} rounds: 1 thread {res['median_s_1_thread'] * 1e3:.1f} ms, {k} threads "
+           f"{res['median_s_threads'] * 1e3:.1f} ms (medians); speed-up {res['speedup']:.2f}x (median of "
+           f"per-round ratios, rounds {lo:.2f}-{hi:.2f}x)"]
+    if res.get("quiet_rounds"):
+        lo, hi = res["quiet_speedup_rounds"]
+        out.append(f"  {res['quiet_rounds']} quiet rounds (other processes < 5 % CPU): 1 thread "
+                   f"{res['quiet_median_s_1_thread'] * 1e3:.1f} ms, {k} threads "
+                   f"{res['quiet_median_s_threads'] * 1e3:.1f} ms; speed-up {res['quiet_speedup']:.2f}x "
+                   f"(rounds {lo:.2f}-{hi:.2f}x)")
+    else:
+        out.append("  no quiet round: other processes used the cores throughout")
+    return "\n".join(out)
