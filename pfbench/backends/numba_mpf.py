@@ -39,16 +39,12 @@ from pfbench.backends.numba_mpf_steps import normals_into as _normals_into
 from pfbench.backends.native_call import caller as _caller
 
 _call2 = _caller(2)
+_call3 = _caller(3)
 _call4 = _caller(4)
 _call5 = _caller(5)
-_call8 = _caller(8)
-_call9 = _caller(9)
-_call12 = _caller(12)
-_call15 = _caller(15)
-_call19 = _caller(19)
 
 #: the functions :func:`run` calls by address, in the order of its ``addresses`` (their argument
-#: types: ``pfbench.filters.marginalized._run_calls``): the model's functions, the wrappers that
+#: types: ``pfbench.backends.numba_backend._run_calls``): the model's functions, the wrappers that
 #: call them, then the step math
 RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_into", "_observation_into",
              "_constrain_into", "_normals_into", "_sandwich", "_condition", "_time_update", "_kalman_update", "_weigh",
@@ -78,27 +74,28 @@ _resample = _b.resample
 # its own function, not again inside each wrapper (measured: 0.9 s of a cold Ob5 start). None of
 # them is called from Python (``no_cpython_wrapper``: 0.03-0.05 s less to compile each).
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _transition_into(xn, u, t, p, fn, An, fl, Al, model_address):
-    """``cl_transition(xn, u, t, p)`` into f^n, A^n, f^l, A^l."""
-    a, b, c, d = _call4(_cl_transition, model_address, xn, u, t, p)
-    _copy_into(a, fn)
-    _copy_into(b, An)
-    _copy_into(c, fl)
-    _copy_into(d, Al)
+def _transition_into(work, u, t, p, model_address):
+    """``cl_transition(xn, u, t, p)`` into f^n, A^n, f^l, A^l (fields of ``work``, a
+    :class:`~pfbench.backends.mpf_work.Work`)."""
+    a, b, c, d = _call4(_cl_transition, model_address, work.xn, u, t, p)
+    _copy_into(a, work.fn)
+    _copy_into(b, work.An)
+    _copy_into(c, work.fl)
+    _copy_into(d, work.Al)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _observation_into(xn, xl, u, t, p, h, C, model_address):
-    """``cl_observation(xn, xl, u, t, p)`` into h, C."""
-    a, b = _call5(_cl_observation, model_address, xn, xl, u, t, p)
-    _copy_into(a, h)
-    _copy_into(b, C)
+def _observation_into(work, u, t, p, model_address):
+    """``cl_observation(xs, m_pred, u, t, p)`` into h, C (fields of ``work``)."""
+    a, b = _call5(_cl_observation, model_address, work.xs, work.m_pred, u, t, p)
+    _copy_into(a, work.h)
+    _copy_into(b, work.C)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _constrain_into(xn, p, out, model_address):
-    """``cl_constrain(xn, p)`` into ``out``."""
-    _copy_into(_call2(_cl_constrain, model_address, xn, p), out)
+def _constrain_into(work, p, model_address):
+    """``cl_constrain(xnew, p)`` into ``xs`` (fields of ``work``)."""
+    _copy_into(_call2(_cl_constrain, model_address, work.xnew, p), work.xs)
 
 
 _transition_into = _b.shared("_transition_into", _transition_into)
@@ -108,22 +105,21 @@ _constrain_into = _b.shared("_constrain_into", _constrain_into)
 
 # --------------------------------------------------------------------------- entry points
 @_njit(nogil=True)
-def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet, m0, P0, scheme,
-        est, cov, ess, inc, degen, addresses):
-    """Run the MPF over all steps from the initial x^n particles ``xn`` (n, d_n), C-contiguous
-    float64, updated in place (one random stream, documented order).
+def run(p, rng, u, st, out, work, scheme, addresses):
+    """Run the MPF over all steps from the initial x^n particles ``work.xn`` (n, d_n), updated in
+    place (one random stream, documented order).
 
-    ``xn`` is drawn from ``rng`` by the caller with the model's NumPy ``initial``, as the NumPy
-    reference draws it (the kernel continues the same stream), so the kernel does not compile the
-    model's ``initial`` (measured: 1.3 s of a cold Ob5 start).
+    ``work.xn`` is drawn from ``rng`` by the caller with the model's NumPy ``initial``, as the
+    NumPy reference draws it (the kernel continues the same stream), so the kernel does not
+    compile the model's ``initial`` (measured: 1.3 s of a cold Ob5 start).
 
-    ``y`` (M, n_y) are the (whitened, if ``whiten``) measurements; ``idx_n``/``idx_l`` the state
-    indices of x^n/x^l (d_n > 0; :func:`run_linear` serves d_n = 0); the noise and whitening
-    arrays as prepared by ``pfbench.filters.marginalized.structure``; ``scheme`` a
-    :class:`~pfbench.resampling.Scheme` code. Fills est (M, n_x), cov (M, n_x, n_x), ess, inc,
-    degen (M,). ``addresses``: the native entry points of the functions in :data:`RUN_CALLS`,
-    in that order, compiled for the argument types of their calls here
-    (:func:`pfbench.backends.native_call.entry_address`).
+    ``st``: the model's :class:`~pfbench.backends.mpf_work.Structure` (d_n > 0; :func:`run_linear`
+    serves d_n = 0), its ``yw`` (M, n_y) the (whitened, if ``whiten``) measurements; ``out``: the
+    :class:`~pfbench.backends.mpf_work.Outputs` est (M, n_x), cov (M, n_x, n_x), ess, inc, degen
+    (M,), filled; ``work``: the :class:`~pfbench.backends.mpf_work.Work` arrays; ``scheme`` a
+    :class:`~pfbench.resampling.Scheme` code. ``addresses``: the native entry points of the
+    functions in :data:`RUN_CALLS`, in that order, compiled for the argument types of their calls
+    here (:func:`pfbench.backends.native_call.entry_address`).
 
     Everything it calls per step goes by address, the model's wrappers and the step math alike:
     this function then compiles as a loop of calls (numba links a directly called function into
@@ -140,76 +136,37 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
     4 (``cl_observation``, ``kalman_update``, the weights), step 5 (moments,
     ``mixture_moments``, resampling).
     """
-    d_n = idx_n.shape[0]
-    d_l = idx_l.shape[0]
-    n_y = y.shape[1]
+    xn, m, P, m0, P0 = work.xn, work.m, work.P, st.m0, st.P0
+    xs, mm, Pm, wu, idx = work.xs, work.mm, work.Pm, work.wu, work.idx
+    d_n = st.idx_n.shape[0]
+    d_l = st.idx_l.shape[0]
     n = xn.shape[0]
-    m = _np.empty((n, d_l))
-    P = _np.empty((n, d_l, d_l))
     for i in range(n):
         for a in range(d_l):
             m[i, a] = m0[a]
             for b in range(d_l):
                 P[i, a, b] = P0[a, b]
-    xnew = _np.empty((n, d_n))
-    z = _np.empty((n, d_n))
-    APn = _np.empty((n, d_n, d_l))
-    N = _np.empty((n, d_n, d_n))
-    L = _np.empty((n, d_n, d_n))
-    w = _np.empty(d_n)
-    V = _np.empty((d_n, d_l))
-    f = _np.empty((n, d_l))
-    A = _np.empty((n, d_l, d_l))
-    APl = _np.empty((n, d_l, d_l))
-    mm = _np.empty((n, d_l))
-    Pm = _np.empty((n, d_l, d_l))
-    m_pred = _np.empty((n, d_l))
-    P_pred = _np.empty((n, d_l, d_l))
-    h0 = _np.empty(n_y)
-    H = _np.empty((n_y, d_l))
-    PH = _np.empty(d_l)
-    fn = _np.empty((n, d_n))
-    An = _np.empty((n, d_n, d_l))
-    fl = _np.empty((n, d_l))
-    Al = _np.empty((n, d_l, d_l))
-    xs = _np.empty((n, d_n))
-    h = _np.empty((n, n_y))
-    C = _np.empty((n, n_y, d_l))
-    dev = _np.empty((n, d_n + d_l))
-    ll = _np.empty(n)
-    lw = _np.empty(n)
+    lw = work.lw
     lw0 = -_np.log(n)
     for i in range(n):
         lw[i] = lw0
-    wu = _np.empty(n)
-    cdf = _np.empty(n)
-    idx = _np.empty(n, _np.int64)
-    mean_n = _np.empty(d_n)
-    var_n = _np.empty(d_n)
-    mean_l = _np.empty(d_l)
-    var_l = _np.empty(d_l)
-    for t in range(y.shape[0]):
+    for t in range(st.yw.shape[0]):
         ut = u[t]
-        _call2(_normals_into, addresses[_A_NORMALS], rng, z)
-        _call9(_transition_into, addresses[_A_TRANSITION], xn, ut, t, p, fn, An, fl, Al,
-               addresses[_A_CL_TRANSITION])
-        _call5(_sandwich, addresses[_A_SANDWICH], An, P, Qn, APn, N)
-        _call19(_condition, addresses[_A_CONDITION], fn, An, fl, Al, m, P, z, N, APn, T, corr, L, w, V, xnew, mm,
-                Pm, f, A)
-        _call8(_time_update, addresses[_A_TIME_UPDATE], f, A, mm, Pm, Ql, APl, m_pred, P_pred)
-        _call4(_constrain_into, addresses[_A_CONSTRAIN], xnew, p, xs, addresses[_A_CL_CONSTRAIN])
-        _call8(_observation_into, addresses[_A_OBSERVATION], xs, m_pred, ut, t, p, h, C,
-               addresses[_A_CL_OBSERVATION])
-        _call15(_kalman_update, addresses[_A_KALMAN_UPDATE], h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet, h0,
-                H, PH, ll, mm, Pm)
-        mx, total, deg = _call4(_weigh, addresses[_A_WEIGH], lw, ll, wu, cdf)
-        degen[t] = deg
-        inc[t] = -_np.inf if deg else mx + _np.log(total)
-        ess[t] = _call5(_moments, addresses[_A_MOMENTS], xs, wu, total, mean_n, var_n)
-        _call5(_moments, addresses[_A_MOMENTS], mm, wu, total, mean_l, var_l)
-        _call12(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], wu, total, mean_n, mean_l, xs, mm, Pm, idx_n, idx_l,
-                dev, est[t], cov[t])
-        _resample(scheme, wu, cdf, rng, idx)
+        _call2(_normals_into, addresses[_A_NORMALS], rng, work.z)
+        _call5(_transition_into, addresses[_A_TRANSITION], work, ut, t, p, addresses[_A_CL_TRANSITION])
+        _call5(_sandwich, addresses[_A_SANDWICH], work.An, P, st.Qn, work.APn, work.N)
+        _call2(_condition, addresses[_A_CONDITION], work, st)
+        _call2(_time_update, addresses[_A_TIME_UPDATE], work, st)
+        _call3(_constrain_into, addresses[_A_CONSTRAIN], work, p, addresses[_A_CL_CONSTRAIN])
+        _call5(_observation_into, addresses[_A_OBSERVATION], work, ut, t, p, addresses[_A_CL_OBSERVATION])
+        _call3(_kalman_update, addresses[_A_KALMAN_UPDATE], work, st, t)
+        mx, total, deg = _call4(_weigh, addresses[_A_WEIGH], lw, work.ll, wu, work.cdf)
+        out.degen[t] = deg
+        out.inc[t] = -_np.inf if deg else mx + _np.log(total)
+        out.ess[t] = _call5(_moments, addresses[_A_MOMENTS], xs, wu, total, work.mean_n, work.var_n)
+        _call5(_moments, addresses[_A_MOMENTS], mm, wu, total, work.mean_l, work.var_l)
+        _call5(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], work, st, out, t, total)
+        _resample(scheme, wu, work.cdf, rng, idx)
         for i in range(n):
             j = idx[i]
             for a in range(d_n):
@@ -220,12 +177,17 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
                     P[i, a, b] = Pm[j, a, b]
 
 
+#: the functions :func:`run_linear` calls by address, in the order of its ``addresses``
+LINEAR_CALLS = ("_time_update", "_kalman_update", "_mixture_moments")
+
+
 @_njit(nogil=True)
-def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, ess, inc, degen,
-               time_update_address, kalman_update_address, mixture_moments_address):
+def run_linear(p, u, st, out, work, addresses):
     """The d_n = 0 case of :func:`run` (every state in x^l): one Kalman/EKF recursion, no random
     numbers, no resampling; the same operations as :func:`run` with one particle, compiled without
-    the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`.
+    the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`;
+    ``work`` holds one copy (n = 1, d_n = 0) whose x^l state is ``mm``, ``Pm`` (what the
+    measurement update writes and the time update reads).
 
     The one copy's weight is exp(0) = 1 whatever its likelihood, so the weighting of :func:`run`
     reduces to: increment = log p(y_t | Y_{t-1}) (-inf, and ``degen`` set, when that is -inf, +inf
@@ -234,58 +196,39 @@ def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, es
 
     It calls the model directly (inlined, LLVM optimises the model's code for the one copy and the
     empty x^n, whose shapes (1, 0) it sees; by address a step of the linear-Gaussian filter took
-    2.8 us instead of 2.0 us) and the step math by address instead (``time_update_address``,
-    ``kalman_update_address``, ``mixture_moments_address``: those functions compiled for the
-    argument types of their calls here, :func:`pfbench.filters.marginalized._step_calls`), so a
-    cold start compiles the step math in a helper process while this one compiles the driver and
-    the model (:mod:`pfbench.backends.compile_helper`). The model's arrays are copied into the
-    kernel's own, which gives the steps one argument type for every model. Measured
-    (linear-Gaussian model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with
-    the steps inlined vs by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
+    2.8 us instead of 2.0 us) and the step math by address instead (``addresses``: the functions
+    of :data:`LINEAR_CALLS` compiled for the argument types of their calls here,
+    :func:`pfbench.backends.numba_backend.run_mpf`), so a cold start compiles the step math in a
+    helper process while this one compiles the driver and the model
+    (:mod:`pfbench.backends.compile_helper`). The model's arrays are copied into the kernel's
+    own, which gives the steps one argument type for every model. Measured (linear-Gaussian
+    model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with the steps inlined vs
+    by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
     """
-    d_l = idx_l.shape[0]
-    n_y = y.shape[1]
+    d_l = st.idx_l.shape[0]
     xn = _np.empty((1, 0))
-    idx_n = _np.empty(0, _np.int64)
-    mean_n = _np.empty(0)
-    m = _np.empty((1, d_l))
-    P = _np.empty((1, d_l, d_l))
+    m, P, m0, P0 = work.mm, work.Pm, st.m0, st.P0
     for a in range(d_l):
         m[0, a] = m0[a]
         for b in range(d_l):
             P[0, a, b] = P0[a, b]
-    AP = _np.empty((1, d_l, d_l))
-    m_pred = _np.empty((1, d_l))
-    P_pred = _np.empty((1, d_l, d_l))
-    h0 = _np.empty(n_y)
-    H = _np.empty((n_y, d_l))
-    PH = _np.empty(d_l)
-    dev = _np.empty((1, d_l))
-    ll = _np.empty(1)
-    wu = _np.empty(1)
-    wu[0] = 1.0
-    mean_l = _np.empty(d_l)
-    fl = _np.empty((1, d_l))
-    Al = _np.empty((1, d_l, d_l))
-    h = _np.empty((1, n_y))
-    C = _np.empty((1, n_y, d_l))
-    for t in range(y.shape[0]):
+    work.wu[0] = 1.0
+    mean_l = work.mean_l
+    for t in range(st.yw.shape[0]):
         ut = u[t]
         _, _, fl_, Al_ = _cl_transition(xn, ut, t, p)
-        _copy_into(fl_, fl)
-        _copy_into(Al_, Al)
-        _call8(_time_update, time_update_address, fl, Al, m, P, Ql, AP, m_pred, P_pred)
-        h_, C_ = _cl_observation(xn, m_pred, ut, t, p)
-        _copy_into(h_, h)
-        _copy_into(C_, C)
-        _call15(_kalman_update, kalman_update_address, h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet,
-                h0, H, PH, ll, m, P)
-        v = _valid(ll[0])
+        _copy_into(fl_, work.f)
+        _copy_into(Al_, work.A)
+        _call2(_time_update, addresses[0], work, st)
+        h_, C_ = _cl_observation(xn, work.m_pred, ut, t, p)
+        _copy_into(h_, work.h)
+        _copy_into(C_, work.C)
+        _call3(_kalman_update, addresses[1], work, st, t)
+        v = _valid(work.ll[0])
         deg = not (v > -_np.inf)
-        degen[t] = deg
-        inc[t] = -_np.inf if deg else v
-        ess[t] = 1.0
+        out.degen[t] = deg
+        out.inc[t] = -_np.inf if deg else v
+        out.ess[t] = 1.0
         for a in range(d_l):
             mean_l[a] = m[0, a]
-        _call12(_mixture_moments, mixture_moments_address, wu, 1.0, mean_n, mean_l, xn, m, P, idx_n, idx_l,
-                dev, est[t], cov[t])
+        _call5(_mixture_moments, addresses[2], work, st, out, t, 1.0)

@@ -48,7 +48,7 @@ def sandwich(A, P, Q, AP, S):
 
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
-def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f, A):
+def condition(work, st):
     """[Schon2005] Alg. 1 steps 1-2 up to the time update, for d_n > 0, per particle: the lower
     Cholesky factor ``L`` of N = A^n P A^n' + Q^n (pivots floored at 1e-300; the upper triangle
     is neither written nor read); the sample x^n_t = f^n + A^n m + L z into ``xnew``; x^l_{t-1}
@@ -56,10 +56,15 @@ def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f,
     N^-1 A^n P (by back substitution N^-1 (...) = L^-T z and V = L^-1 A^n P); and the x^l
     transition into ``f``, ``A``: with ``corr`` (a cross-covariance Q^ln) f = f^l + T (x^n_t - f^n)
     and A = A^l - T A^n, T = Q^ln (Q^n)^-1, else f^l and A^l. ``N`` and ``AP`` = A^n P come from
-    :func:`sandwich`; ``w`` (d_n,) and ``V`` (d_n, d_l) are scratch. The twin of
+    :func:`sandwich` (``APn``); ``w`` (d_n,) and ``V`` (d_n, d_l) are scratch. The arrays are
+    the fields of ``work`` (:class:`~pfbench.backends.mpf_work.Work`), ``T`` and ``corr`` those of
+    ``st`` (:class:`~pfbench.backends.mpf_work.Structure`). The twin of
     :func:`pfbench.filters.marginalized.cholesky_batch`,
     :func:`~pfbench.filters.marginalized.condition_nonlinear` and the decorrelation of
     :func:`~pfbench.filters.marginalized.kalman_predict`."""
+    fn, An, fl, Al, m, P, z, N, AP = work.fn, work.An, work.fl, work.Al, work.m, work.P, work.z, work.N, work.APn
+    T, corr = st.T, st.corr
+    L, w, V, xnew, mm, Pm, f, A = work.L, work.w, work.V, work.xnew, work.mm, work.Pm, work.f, work.A
     n = m.shape[0]
     d_l = m.shape[1]
     d_n = fn.shape[1]
@@ -118,11 +123,13 @@ def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f,
 
 
 @njit(nogil=True, no_cpython_wrapper=True)
-def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
+def time_update(work, st):
     """The linear-Gaussian time update of [Schon2005] Alg. 1 step 2: ``m_pred`` = f + A m and
-    ``P_pred`` = A P A' + Q per particle (``AP`` (n, d_l, d_l) scratch). With d_n = 0 this is the
-    whole prediction of the Kalman filter. The twin of
+    ``P_pred`` = A P A' + Q per particle, with m, P the conditioned ``mm``, ``Pm`` of ``work``
+    (:class:`~pfbench.backends.mpf_work.Work`; ``APl`` scratch) and Q = Q^l of ``st``. With d_n = 0
+    this is the whole prediction of the Kalman filter. The twin of
     :func:`pfbench.filters.marginalized.time_update`."""
+    f, A, m, P, Q, AP, m_pred, P_pred = work.f, work.A, work.mm, work.Pm, st.Ql, work.APl, work.m_pred, work.P_pred
     n = m.shape[0]
     d_l = m.shape[1]
     for i in range(n):
@@ -135,12 +142,17 @@ def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
 
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
-def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, ll, m, P):
-    """[Schon2005] Alg. 1 step 4: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll`` (n,) and the
-    measurement update into ``m`` (n, d_l), ``P`` (n, d_l, d_l); ``h0`` (n_y,), ``H`` (n_y, d_l),
-    ``PH`` (d_l,) are scratch. Arguments as for :func:`pfbench.filters.marginalized.kalman_update`
-    (its twin): the outputs whitened with ``W`` when ``whiten`` and processed one scalar at a time,
-    residuals taken about the fixed linearisation point ``m_pred``."""
+def kalman_update(work, st, t):
+    """[Schon2005] Alg. 1 step 4 at step ``t``: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll``
+    (n,) and the measurement update of ``m_pred``, ``P_pred`` into ``mm`` (n, d_l), ``Pm`` (n, d_l,
+    d_l), fields of ``work`` (:class:`~pfbench.backends.mpf_work.Work`; ``h0`` (n_y,), ``H`` (n_y,
+    d_l), ``PH`` (d_l,) scratch), y_t the row ``t`` of ``st.yw``. The rest as for
+    :func:`pfbench.filters.marginalized.kalman_update` (its twin): the outputs whitened with ``W``
+    when ``whiten`` and processed one scalar at a time, residuals taken about the fixed
+    linearisation point ``m_pred``."""
+    h, C, m_pred, P_pred = work.h, work.C, work.m_pred, work.P_pred
+    y, W, rvar, whiten, logdet = st.yw[t], st.W, st.rvar, st.whiten, st.logdet
+    h0, H, PH, ll, m, P = work.h0, work.H, work.PH, work.ll, work.mm, work.Pm
     n = m_pred.shape[0]
     d_l = m_pred.shape[1]
     n_y = y.shape[0]
@@ -188,12 +200,16 @@ def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, l
 
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
-def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est, cov):
-    """[Schon2005] Alg. 1 step 5: the full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x,
-    n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, given the
-    weighted means of x^n (``mean_n``) and of the m_i (``mean_l``): cov = sum_i w_i (d_i d_i' +
-    [0 0; 0 P_i]); ``dev`` (n, n_x) scratch for the d_i. The twin of
+def mixture_moments(work, st, out, t, total):
+    """[Schon2005] Alg. 1 step 5: the full-state mean ``out.est[t]`` (n_x,) and covariance
+    ``out.cov[t]`` (n_x, n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i /
+    total, given the weighted means of x^n (``mean_n``) and of the m_i (``mean_l``): cov = sum_i
+    w_i (d_i d_i' + [0 0; 0 P_i]); ``dev`` (n, n_x) scratch for the d_i. x^n_i, m_i, P_i are
+    ``xs``, ``mm``, ``Pm`` of ``work`` (:class:`~pfbench.backends.mpf_work.Work`), the state
+    indices those of ``st``, ``out`` an :class:`~pfbench.backends.mpf_work.Outputs`. The twin of
     :func:`pfbench.filters.marginalized.mixture_moments`."""
+    wu, mean_n, mean_l, xn, m, P, dev = work.wu, work.mean_n, work.mean_l, work.xs, work.mm, work.Pm, work.dev
+    idx_n, idx_l, est, cov = st.idx_n, st.idx_l, out.est[t], out.cov[t]
     n = wu.shape[0]
     d_n = idx_n.shape[0]
     d_l = idx_l.shape[0]
