@@ -5,8 +5,9 @@ the same random draws in the same order, the same weighting (:mod:`pfbench.backe
 and resampling (:mod:`pfbench.backends.numba_resampling`, the scheme bound as ``_resample``). It calls the model through
 four module globals, ``_initial``, ``_proposal``, ``_proposal_log_weight`` and
 ``_predictive_log_likelihood``. As a file it is importable (they are placeholders here);
-:func:`pfbench.backends.numba_backend.kernel_module` (family ``"guided"``) writes a copy of it per
-model class with the model's compiled functions bound to those names at the end.
+:func:`pfbench.backends.kernels.build` (family ``"guided"``) runs it per model class with the
+model's compiled functions bound to those names. A whole run takes the named groups of
+:mod:`pfbench.backends.guided_work`.
 
 Each kind of proposal has its own step and run functions, so numba only ever compiles the model
 functions that kind uses (a model with its own proposal need not define

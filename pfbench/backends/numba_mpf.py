@@ -14,9 +14,9 @@ scheme bound as ``_resample``). The model is called through the module globals
 on all particles: :func:`run` through three wrappers called by address, which call the model
 by address in turn (see "the model's calls" below), :func:`run_linear` directly (it calls the
 step math by address instead).
-:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of this file per model class
-with the model's compiled functions bound to those names, so numba caches the whole kernel on
-disk.
+:func:`pfbench.backends.kernels.build` runs this file per model class with the model's compiled
+functions bound to those names, so numba caches the whole kernel on disk. The drivers and the
+functions they call by address take the named groups of :mod:`pfbench.backends.mpf_work`.
 
 Two entry points, so a call compiles only what it runs: :func:`run` for models with nonlinear
 states (d_n > 0) and :func:`run_linear` for d_n = 0 (the ``kalman`` method and the MPF on a fully
@@ -44,8 +44,8 @@ _call4 = _caller(4)
 _call5 = _caller(5)
 
 #: the functions :func:`run` calls by address, in the order of its ``addresses`` (their argument
-#: types: ``pfbench.backends.numba_backend._run_calls``): the model's functions, the wrappers that
-#: call them, then the step math
+#: types: ``_run_calls`` and ``_step_calls`` of :mod:`pfbench.backends.numba_backend`): the model's
+#: functions, the wrappers that call them, then the step math
 RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_into", "_observation_into",
              "_constrain_into", "_normals_into", "_sandwich", "_condition", "_time_update", "_kalman_update", "_weigh",
              "_moments", "_mixture_moments")

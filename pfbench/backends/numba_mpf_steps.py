@@ -14,7 +14,9 @@ Each is a function of its own, which the kernel's drivers call by address
 code of all it calls once more. They are few (a compiled function costs a fixed 0.05-0.2 s) and
 call nothing but :func:`sandwich` and, in :func:`normals_into`, the engine's normal draws. None is
 called from Python (``no_cpython_wrapper``), except :func:`copy_into`, which copies what the
-model's structure functions return into the kernel's own arrays.
+model's structure functions return into the kernel's own arrays. Those above eight arrays take the
+kernel's named groups (:mod:`pfbench.backends.mpf_work`) and read their fields by name, so their
+argument types are ``numba.typeof`` of the groups the host passes.
 """
 import numpy as np
 
