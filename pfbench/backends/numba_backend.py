@@ -179,20 +179,51 @@ def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
     st = mpf_work.structure_group(s)
     out = mpf_work.Outputs(est, cov, ess, inc, degen)
     work = mpf_work.work_arrays(xn, int(s["d_l"]), st.yw.shape[1])
-    steps = _step_calls(st, out, work)
     if s["d_n"] == 0:
         mod = build("mpf", model, None)
         args = (p, u, st, out, work, np.zeros(len(mod.LINEAR_CALLS), np.int64))
-        addresses = native_addresses(model, "mpf", mod, mod.run_linear, args,
-                                     [(name, *steps[name]) for name in mod.LINEAR_CALLS])
-        mod.run_linear(*args[:-1], np.array(addresses, np.int64))
+        addresses = _call_addresses(mod.run_linear, args, lambda: native_addresses(
+            model, "mpf", mod, mod.run_linear, args,
+            [(name, *_step_calls(st, out, work)[name]) for name in mod.LINEAR_CALLS]))
+        mod.run_linear(*args[:-1], addresses)
         return
     mod = build("mpf", model, scheme)
     args = (p, rng, u, st, out, work, int(scheme), np.zeros(len(mod.RUN_CALLS), np.int64))
-    calls = {**_run_calls(p, rng, u, st, work), **steps}
-    addresses = native_addresses(model, "mpf", mod, mod.run, args, [(name, *calls[name]) for name in mod.RUN_CALLS],
-                                 here=_RUN_HERE)
-    mod.run(*args[:-1], np.array(addresses, np.int64))
+
+    def find():
+        calls = {**_run_calls(p, rng, u, st, work), **_step_calls(st, out, work)}
+        return native_addresses(model, "mpf", mod, mod.run, args, [(name, *calls[name]) for name in mod.RUN_CALLS],
+                                here=_RUN_HERE)
+
+    mod.run(*args[:-1], _call_addresses(mod.run, args, find))
+
+
+#: (driver, the type fingerprints of its arguments) -> the int64 array of the entry addresses of
+#: the functions it calls by address (MPF and guided drivers): found once per process, as the
+#: particle kernel's passes are (:data:`_PASS_ADDRESSES`). The argument types of those calls are
+#: ``numba.typeof`` of the groups passed, which costs about 4 ms for the MPF's (numba types each
+#: of the 37 work arrays one by one, several times); the fingerprints, what numba's dispatcher
+#: keys its compiled code on, take 10 us
+_CALL_ADDRESSES: dict = {}
+
+
+def _call_addresses(driver, args, find) -> np.ndarray:
+    """The addresses ``find()`` returns (:func:`native_addresses`) for ``driver`` called with
+    ``args``, looked up in :data:`_CALL_ADDRESSES` first."""
+    import numba
+    from numba._dispatcher import compute_fingerprint
+
+    key = [driver]
+    for a in args:
+        try:
+            key.append(compute_fingerprint(a))
+        except NotImplementedError:  # no fingerprint (a generator): its numba type
+            key.append(numba.typeof(a))
+    key = tuple(key)
+    addresses = _CALL_ADDRESSES.get(key)
+    if addresses is None:
+        addresses = _CALL_ADDRESSES.setdefault(key, np.array(find(), np.int64))
+    return addresses
 
 
 def _step_calls(st, out, work) -> dict:
@@ -255,8 +286,9 @@ def run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est
     out = guided_work.Outputs(est, var, ess, inc, res, degen)
     settings = guided_work.Settings(int(n_noise), int(scheme), float(threshold))
     args = (p, rng, y, u, x, lw, out, settings)
-    propose, weight = native_addresses(model, "guided", mod, driver, args, _model_calls(kind, p, y, u, x, n_noise))
-    driver(*args[:-1], settings._replace(propose=propose, weight=weight))
+    propose, weight = _call_addresses(driver, args, lambda: native_addresses(
+        model, "guided", mod, driver, args, _model_calls(kind, p, y, u, x, n_noise)))
+    driver(*args[:-1], settings._replace(propose=int(propose), weight=int(weight)))
 
 
 def _model_calls(kind, p, y, u, x, n_noise) -> list:
