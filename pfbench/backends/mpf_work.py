@@ -1,13 +1,16 @@
 """The numba MPF kernel's arguments as named groups (:mod:`pfbench.backends.numba_mpf`).
 
 The drivers take the parameters, the generator, ``u`` and three groups: :class:`Structure` (the
-model's linear-Gaussian split), :class:`Outputs` and :class:`Work` (the kernel's per-particle
-arrays, allocated by the host); the step math of :mod:`pfbench.backends.numba_mpf_steps` and the
-model's wrappers, called by address, take these groups too. numba types a named tuple by its
-fields, so the argument types of every call by address are ``numba.typeof`` of the very objects
-the host passes (:func:`pfbench.backends.particle_work.pass_types`): the order of the fields is
-written once, here. Both drivers fill one :class:`Work` type (the Kalman driver with one copy and
-no x^n), so the step math they share is compiled once for both.
+model's linear-Gaussian split), :class:`Outputs` and :class:`Work` (the kernel's arrays,
+allocated by the host, :func:`work_arrays`). Structure and work are made of small groups, one per concept (:class:`Affine`,
+:class:`Gaussians`, ...), and a function called by address takes the small groups it uses: an
+array in a function's arguments is compile time whether the function reads it or not (measured:
+the Kalman update compiled 0.5 s slower taking all of :class:`Work` than taking its 15 arrays).
+numba types a named tuple by its fields, so the argument types of every call by address are
+``numba.typeof`` of the very objects the host passes
+(:func:`pfbench.backends.particle_work.pass_types`): the order of the fields is written once, here.
+Both drivers fill one :class:`Work` type (the Kalman driver with one copy and no x^n), so the step
+math they share is compiled once for both.
 """
 from __future__ import annotations
 
@@ -16,32 +19,63 @@ from typing import NamedTuple
 import numpy as np
 
 
-class Structure(NamedTuple):
-    """The model's conditionally linear-Gaussian split, as
-    :func:`pfbench.filters.marginalized.structure` returns it (:func:`structure_group`): the
-    indices of x^n and x^l; the noise blocks Q^n, the decorrelated Q^l, T = Q^ln (Q^n)^-1 and
-    whether there is a cross-covariance (``corr``); the measurement whitening ``W``, the
-    per-output variances ``rvar``, ``whiten``, ``logdet``; the x^l prior ``m0``, ``P0``; the
-    (whitened) measurements ``yw`` (M, n_y)."""
+class Affine(NamedTuple):
+    """An affine map ``f + A x`` per particle: f (n, d), A (n, d, d_l); the model's x^n and x^l
+    transitions, the measurement h + C x^l, the x^l transition after conditioning."""
 
-    idx_n: np.ndarray
-    idx_l: np.ndarray
+    f: np.ndarray
+    A: np.ndarray
+
+
+class Gaussians(NamedTuple):
+    """Means and covariances: (n, d_l), (n, d_l, d_l) per particle, or the prior's (d_l,), (d_l, d_l)."""
+
+    m: np.ndarray
+    P: np.ndarray
+
+
+class Split(NamedTuple):
+    """The state indices (int64) of x^n and of x^l."""
+
+    n: np.ndarray
+    l: np.ndarray  # noqa: E741 - x^l
+
+
+class Noise(NamedTuple):
+    """The process noise: Q^n, the decorrelated Q^l, T = Q^ln (Q^n)^-1 and whether there is a
+    cross-covariance Q^ln (``corr``)."""
+
     Qn: np.ndarray
     Ql: np.ndarray
     T: np.ndarray
     corr: bool
+
+
+class Measurement(NamedTuple):
+    """The measurements ``yw`` (M, n_y), whitened with ``W`` when ``whiten`` (``logdet`` the log
+    determinant taken out), and the per-output variances ``rvar``."""
+
+    yw: np.ndarray
     W: np.ndarray
     rvar: np.ndarray
     whiten: bool
     logdet: float
-    m0: np.ndarray
-    P0: np.ndarray
-    yw: np.ndarray
+
+
+class Structure(NamedTuple):
+    """The model's conditionally linear-Gaussian split, as
+    :func:`pfbench.filters.marginalized.structure` returns it (:func:`structure_group`)."""
+
+    split: Split
+    noise: Noise
+    meas: Measurement
+    prior: Gaussians
 
 
 def structure_group(s: dict) -> Structure:
     """The :class:`Structure` of the dict ``s`` of :func:`pfbench.filters.marginalized.structure`."""
-    return Structure(**{name: s[name] for name in Structure._fields})
+    return Structure(Split(s["idx_n"], s["idx_l"]), Noise(s["Qn"], s["Ql"], s["T"], s["corr"]),
+                     Measurement(s["yw"], s["W"], s["rvar"], s["whiten"], s["logdet"]), Gaussians(s["m0"], s["P0"]))
 
 
 class Outputs(NamedTuple):
@@ -54,76 +88,98 @@ class Outputs(NamedTuple):
     degen: np.ndarray
 
 
-class Work(NamedTuple):
-    """The kernel's arrays (:func:`work_arrays`), float64 C arrays but ``idx``; n particles, d_n
-    and d_l the sizes of x^n and x^l, n_y outputs. The Kalman driver fills it with n = 1, d_n = 0
-    and keeps its x^l state in ``mm``, ``Pm``."""
+class Conditioning(NamedTuple):
+    """The x^n sampling and conditioning of a step: the noise z (n, d_n); A^n P (n, d_n, d_l) and
+    N = A^n P A^n' + Q^n (n, d_n, d_n); N's Cholesky factor L (n, d_n, d_n); scratch w (d_n,),
+    V (d_n, d_l)."""
 
-    #: (n, d_n) the x^n particles: the prior draw (the host's), then the resampled ones
-    xn: np.ndarray
-    #: (n, d_l), (n, d_l, d_l) the x^l means and covariances of the particles
-    m: np.ndarray
-    P: np.ndarray
-    #: (n, d_n) the x^n noise of a step; (n, d_n) the new x^n sample
     z: np.ndarray
-    xnew: np.ndarray
-    #: the model's ``cl_transition``: f^n (n, d_n), A^n (n, d_n, d_l), f^l (n, d_l), A^l (n, d_l, d_l)
-    fn: np.ndarray
-    An: np.ndarray
-    fl: np.ndarray
-    Al: np.ndarray
-    #: A^n P (n, d_n, d_l), N = A^n P A^n' + Q^n (n, d_n, d_n) and its Cholesky factor L
     APn: np.ndarray
     N: np.ndarray
     L: np.ndarray
-    #: (d_n,), (d_n, d_l) scratch of the conditioning
     w: np.ndarray
     V: np.ndarray
-    #: the x^l transition after conditioning (n, d_l), (n, d_l, d_l)
-    f: np.ndarray
-    A: np.ndarray
-    #: x^l conditioned on x^n, then measurement-updated (n, d_l), (n, d_l, d_l)
-    mm: np.ndarray
-    Pm: np.ndarray
-    #: A P (n, d_l, d_l) scratch of the time update; the predicted x^l (n, d_l), (n, d_l, d_l)
-    APl: np.ndarray
-    m_pred: np.ndarray
-    P_pred: np.ndarray
-    #: (n, d_n) the constrained x^n; the model's ``cl_observation``: h (n, n_y), C (n, n_y, d_l)
-    xs: np.ndarray
-    h: np.ndarray
-    C: np.ndarray
-    #: (n_y,), (n_y, d_l), (d_l,) scratch of the measurement update
+
+
+class UpdateScratch(NamedTuple):
+    """Scratch of the measurement update: h0 (n_y,), H (n_y, d_l), PH (d_l,)."""
+
     h0: np.ndarray
     H: np.ndarray
     PH: np.ndarray
-    #: (n,) log-likelihoods, log-weights, weights, their running sum; (n,) int64 ancestors
+
+
+class Weights(NamedTuple):
+    """(n,) log-likelihoods, log-weights, weights, their running sum; (n,) int64 ancestors."""
+
     ll: np.ndarray
     lw: np.ndarray
     wu: np.ndarray
     cdf: np.ndarray
     idx: np.ndarray
-    #: the weighted means and variances of x^n (d_n,) and of the x^l means (d_l,)
+
+
+class Moments(NamedTuple):
+    """The weighted means and variances of x^n (d_n,) and of the x^l means (d_l,); the
+    deviations from the mixture's mean (n, d_n + d_l)."""
+
     mean_n: np.ndarray
     var_n: np.ndarray
     mean_l: np.ndarray
     var_l: np.ndarray
-    #: (n, d_n + d_l) the deviations from the mean of the mixture moments
     dev: np.ndarray
 
 
+class Work(NamedTuple):
+    """The kernel's arrays (:func:`work_arrays`), float64 C arrays but the ancestors; n particles,
+    d_n and d_l the sizes of x^n and x^l. The Kalman driver fills it with n = 1, d_n = 0 and keeps
+    its x^l state in ``cond``."""
+
+    #: (n, d_n) the x^n particles: the prior draw (the host's), then the resampled ones
+    xn: np.ndarray
+    #: the x^l of the particles
+    prior: Gaussians
+    #: the model's ``cl_transition``: f^n, A^n and f^l, A^l
+    tn: Affine
+    tl: Affine
+    fac: Conditioning
+    #: (n, d_n) the new x^n sample, and constrained (``cl_constrain``)
+    xnew: np.ndarray
+    xs: np.ndarray
+    #: the x^l transition after conditioning
+    lin: Affine
+    #: x^l conditioned on x^n, then measurement-updated
+    cond: Gaussians
+    #: (n, d_l, d_l) scratch of the time update, and the predicted x^l
+    APl: np.ndarray
+    pred: Gaussians
+    #: the model's ``cl_observation``: h (n, n_y), C (n, n_y, d_l)
+    obs: Affine
+    upd: UpdateScratch
+    wts: Weights
+    mom: Moments
+
+
 def work_arrays(xn, d_l: int, n_y: int) -> Work:
-    """The kernel's arrays for the initial x^n particles ``xn`` (n, d_n), float64 C (kept as
+    """The kernel's arrays for the x^n particles ``xn`` (n, d_n), float64 C (kept as
     :attr:`Work.xn`; None: the Kalman driver, one copy, no x^n), d_l linear states and n_y
-    outputs. Allocated here, not in the kernel: an array constructor compiled into a kernel is
-    compile time on every cold start."""
+    outputs. Allocated by the host: a nested named tuple built in compiled code compiled slower
+    than the driver's unboxing of it."""
     if xn is None:
         xn = np.empty((1, 0))
     n, d_n = xn.shape
-    shapes = dict(m=(n, d_l), P=(n, d_l, d_l), z=(n, d_n), xnew=(n, d_n), fn=(n, d_n), An=(n, d_n, d_l),
-                  fl=(n, d_l), Al=(n, d_l, d_l), APn=(n, d_n, d_l), N=(n, d_n, d_n), L=(n, d_n, d_n), w=d_n,
-                  V=(d_n, d_l), f=(n, d_l), A=(n, d_l, d_l), mm=(n, d_l), Pm=(n, d_l, d_l), APl=(n, d_l, d_l),
-                  m_pred=(n, d_l), P_pred=(n, d_l, d_l), xs=(n, d_n), h=(n, n_y), C=(n, n_y, d_l), h0=n_y,
-                  H=(n_y, d_l), PH=d_l, ll=n, lw=n, wu=n, cdf=n, mean_n=d_n, var_n=d_n, mean_l=d_l, var_l=d_l,
-                  dev=(n, d_n + d_l))
-    return Work(xn=xn, idx=np.empty(n, np.int64), **{name: np.empty(shape) for name, shape in shapes.items()})
+    return Work(xn,
+                Gaussians(np.empty((n, d_l)), np.empty((n, d_l, d_l))),  # prior
+                Affine(np.empty((n, d_n)), np.empty((n, d_n, d_l))),  # tn
+                Affine(np.empty((n, d_l)), np.empty((n, d_l, d_l))),  # tl
+                Conditioning(np.empty((n, d_n)), np.empty((n, d_n, d_l)), np.empty((n, d_n, d_n)),
+                             np.empty((n, d_n, d_n)), np.empty(d_n), np.empty((d_n, d_l))),
+                np.empty((n, d_n)), np.empty((n, d_n)),  # xnew, xs
+                Affine(np.empty((n, d_l)), np.empty((n, d_l, d_l))),  # lin
+                Gaussians(np.empty((n, d_l)), np.empty((n, d_l, d_l))),  # cond
+                np.empty((n, d_l, d_l)),  # APl
+                Gaussians(np.empty((n, d_l)), np.empty((n, d_l, d_l))),  # pred
+                Affine(np.empty((n, n_y)), np.empty((n, n_y, d_l))),  # obs
+                UpdateScratch(np.empty(n_y), np.empty((n_y, d_l)), np.empty(d_l)),
+                Weights(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)),
+                Moments(np.empty(d_n), np.empty(d_n), np.empty(d_l), np.empty(d_l), np.empty((n, d_n + d_l))))

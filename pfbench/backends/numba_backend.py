@@ -178,7 +178,7 @@ def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
     u = np.ascontiguousarray(u)  # its rows are then the C arrays _run_calls types
     st = mpf_work.structure_group(s)
     out = mpf_work.Outputs(est, cov, ess, inc, degen)
-    work = mpf_work.work_arrays(xn, int(s["d_l"]), st.yw.shape[1])
+    work = mpf_work.work_arrays(xn, int(s["d_l"]), st.meas.yw.shape[1])
     if s["d_n"] == 0:
         mod = build("mpf", model, None)
         args = (p, u, st, out, work, np.zeros(len(mod.LINEAR_CALLS), np.int64))
@@ -201,9 +201,9 @@ def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
 #: (driver, the type fingerprints of its arguments) -> the int64 array of the entry addresses of
 #: the functions it calls by address (MPF and guided drivers): found once per process, as the
 #: particle kernel's passes are (:data:`_PASS_ADDRESSES`). The argument types of those calls are
-#: ``numba.typeof`` of the groups passed, which costs about 4 ms for the MPF's (numba types each
-#: of the 37 work arrays one by one, several times); the fingerprints, what numba's dispatcher
-#: keys its compiled code on, take 10 us
+#: ``numba.typeof`` of the groups passed, which costs milliseconds for the MPF's (numba types its
+#: 37 work arrays one by one); the fingerprints, what numba's dispatcher keys its compiled code on,
+#: take 10 us
 _CALL_ADDRESSES: dict = {}
 
 
@@ -234,10 +234,11 @@ def _step_calls(st, out, work) -> dict:
     refuses other types (:func:`pfbench.backends.native_call.caller`)."""
     import numba
 
-    none = numba.types.none
-    return {"_time_update": (pass_types(work, st), none),
-            "_kalman_update": (pass_types(work, st, 0), none),
-            "_mixture_moments": (pass_types(work, st, out, 0, 0.0), none)}
+    none, w = numba.types.none, work
+    return {"_time_update": (pass_types(w.lin, w.cond, st.noise.Ql, w.APl, w.pred), none),
+            "_kalman_update": (pass_types(w.obs, w.pred, st.meas, 0, w.upd, w.wts.ll, w.cond), none),
+            "_mixture_moments": (pass_types(w.wts.wu, 0.0, w.mom, w.xs, w.cond, st.split, out.est[0], out.cov[0]),
+                                 none)}
 
 
 #: the functions of :data:`pfbench.backends.numba_mpf.RUN_CALLS` that a cold start compiles in
@@ -262,18 +263,18 @@ def _run_calls(p, rng, u, st, work) -> dict:
     import numba
 
     t = numba.types
-    none, ut = t.none, u[0]
-    return {"_cl_transition": (pass_types(work.xn, ut, 0, p), None),
-            "_cl_observation": (pass_types(work.xs, work.m_pred, ut, 0, p), None),
-            "_cl_constrain": (pass_types(work.xnew, p), None),
-            "_transition_into": (pass_types(work, ut, 0, p, 0), none),
-            "_observation_into": (pass_types(work, ut, 0, p, 0), none),
-            "_constrain_into": (pass_types(work, p, 0), none),
-            "_normals_into": (pass_types(rng, work.z), none),
-            "_sandwich": (pass_types(work.An, work.P, st.Qn, work.APn, work.N), none),
-            "_condition": (pass_types(work, st), none),
-            "_weigh": (pass_types(work.lw, work.ll, work.wu, work.cdf), t.Tuple((t.float64, t.float64, t.boolean))),
-            "_moments": (pass_types(work.xs, work.wu, 0.0, work.mean_n, work.var_n), t.float64)}
+    none, ut, w = t.none, u[0], work
+    return {"_cl_transition": (pass_types(w.xn, ut, 0, p), None),
+            "_cl_observation": (pass_types(w.xs, w.pred.m, ut, 0, p), None),
+            "_cl_constrain": (pass_types(w.xnew, p), None),
+            "_transition_into": (pass_types(w.xn, ut, 0, p, w.tn, w.tl, 0), none),
+            "_observation_into": (pass_types(w.xs, w.pred.m, ut, 0, p, w.obs, 0), none),
+            "_constrain_into": (pass_types(w.xnew, p, w.xs, 0), none),
+            "_normals_into": (pass_types(rng, w.fac.z), none),
+            "_sandwich": (pass_types(w.tn.A, w.prior.P, st.noise.Qn, w.fac.APn, w.fac.N), none),
+            "_condition": (pass_types(w.tn, w.tl, w.prior, w.fac, st.noise, w.xnew, w.cond, w.lin), none),
+            "_weigh": (pass_types(w.wts.lw, w.wts.ll, w.wts.wu, w.wts.cdf), t.Tuple((t.float64, t.float64, t.boolean))),
+            "_moments": (pass_types(w.xs, w.wts.wu, 0.0, w.mom.mean_n, w.mom.var_n), t.float64)}
 
 
 # --------------------------------------------------------------------------- the guided family

@@ -39,9 +39,10 @@ from pfbench.backends.numba_mpf_steps import normals_into as _normals_into
 from pfbench.backends.native_call import caller as _caller
 
 _call2 = _caller(2)
-_call3 = _caller(3)
 _call4 = _caller(4)
 _call5 = _caller(5)
+_call7 = _caller(7)
+_call8 = _caller(8)
 
 #: the functions :func:`run` calls by address, in the order of its ``addresses`` (their argument
 #: types: ``_run_calls`` and ``_step_calls`` of :mod:`pfbench.backends.numba_backend`): the model's
@@ -74,28 +75,28 @@ _resample = _b.resample
 # its own function, not again inside each wrapper (measured: 0.9 s of a cold Ob5 start). None of
 # them is called from Python (``no_cpython_wrapper``: 0.03-0.05 s less to compile each).
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _transition_into(work, u, t, p, model_address):
-    """``cl_transition(xn, u, t, p)`` into f^n, A^n, f^l, A^l (fields of ``work``, a
-    :class:`~pfbench.backends.mpf_work.Work`)."""
-    a, b, c, d = _call4(_cl_transition, model_address, work.xn, u, t, p)
-    _copy_into(a, work.fn)
-    _copy_into(b, work.An)
-    _copy_into(c, work.fl)
-    _copy_into(d, work.Al)
+def _transition_into(xn, u, t, p, tn, tl, model_address):
+    """``cl_transition(xn, u, t, p)`` into f^n, A^n (``tn``) and f^l, A^l (``tl``,
+    :class:`~pfbench.backends.mpf_work.Affine`)."""
+    a, b, c, d = _call4(_cl_transition, model_address, xn, u, t, p)
+    _copy_into(a, tn.f)
+    _copy_into(b, tn.A)
+    _copy_into(c, tl.f)
+    _copy_into(d, tl.A)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _observation_into(work, u, t, p, model_address):
-    """``cl_observation(xs, m_pred, u, t, p)`` into h, C (fields of ``work``)."""
-    a, b = _call5(_cl_observation, model_address, work.xs, work.m_pred, u, t, p)
-    _copy_into(a, work.h)
-    _copy_into(b, work.C)
+def _observation_into(xn, xl, u, t, p, obs, model_address):
+    """``cl_observation(xn, xl, u, t, p)`` into h, C (``obs``)."""
+    a, b = _call5(_cl_observation, model_address, xn, xl, u, t, p)
+    _copy_into(a, obs.f)
+    _copy_into(b, obs.A)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _constrain_into(work, p, model_address):
-    """``cl_constrain(xnew, p)`` into ``xs`` (fields of ``work``)."""
-    _copy_into(_call2(_cl_constrain, model_address, work.xnew, p), work.xs)
+def _constrain_into(xn, p, out, model_address):
+    """``cl_constrain(xn, p)`` into ``out``."""
+    _copy_into(_call2(_cl_constrain, model_address, xn, p), out)
 
 
 _transition_into = _b.shared("_transition_into", _transition_into)
@@ -106,8 +107,8 @@ _constrain_into = _b.shared("_constrain_into", _constrain_into)
 # --------------------------------------------------------------------------- entry points
 @_njit(nogil=True)
 def run(p, rng, u, st, out, work, scheme, addresses):
-    """Run the MPF over all steps from the initial x^n particles ``work.xn`` (n, d_n), updated in
-    place (one random stream, documented order).
+    """Run the MPF over all steps from the initial x^n particles ``work.xn`` (n, d_n), C-contiguous
+    float64, updated in place (one random stream, documented order).
 
     ``work.xn`` is drawn from ``rng`` by the caller with the model's NumPy ``initial``, as the
     NumPy reference draws it (the kernel continues the same stream), so the kernel does not
@@ -136,37 +137,46 @@ def run(p, rng, u, st, out, work, scheme, addresses):
     4 (``cl_observation``, ``kalman_update``, the weights), step 5 (moments,
     ``mixture_moments``, resampling).
     """
-    xn, m, P, m0, P0 = work.xn, work.m, work.P, st.m0, st.P0
-    xs, mm, Pm, wu, idx = work.xs, work.mm, work.Pm, work.wu, work.idx
-    d_n = st.idx_n.shape[0]
-    d_l = st.idx_l.shape[0]
+    # every group and array the loop uses, taken out of the groups once: the loop is then the same
+    # statements as on plain arguments (each field read in it is compile time, once per statement)
+    xn, xnew, xs, prior, cond, pred, tn, tl, lin = (work.xn, work.xnew, work.xs, work.prior, work.cond, work.pred,
+                                                    work.tn, work.tl, work.lin)
+    fac, APl, obs, upd, wts, mom = work.fac, work.APl, work.obs, work.upd, work.wts, work.mom
+    m, P, mm, Pm, m_pred, An = prior.m, prior.P, cond.m, cond.P, pred.m, tn.A
+    z, APn, N = fac.z, fac.APn, fac.N
+    ll, lw, wu, cdf, idx = wts.ll, wts.lw, wts.wu, wts.cdf, wts.idx
+    mean_n, var_n, mean_l, var_l = mom.mean_n, mom.var_n, mom.mean_l, mom.var_l
+    m0, P0, split, noise, meas = st.prior.m, st.prior.P, st.split, st.noise, st.meas
+    Qn, Ql = noise.Qn, noise.Ql
+    est, cov, ess, inc, degen = out.est, out.cov, out.ess, out.inc, out.degen
+    d_n = split.n.shape[0]
+    d_l = split.l.shape[0]
     n = xn.shape[0]
     for i in range(n):
         for a in range(d_l):
             m[i, a] = m0[a]
             for b in range(d_l):
                 P[i, a, b] = P0[a, b]
-    lw = work.lw
     lw0 = -_np.log(n)
     for i in range(n):
         lw[i] = lw0
-    for t in range(st.yw.shape[0]):
+    for t in range(meas.yw.shape[0]):
         ut = u[t]
-        _call2(_normals_into, addresses[_A_NORMALS], rng, work.z)
-        _call5(_transition_into, addresses[_A_TRANSITION], work, ut, t, p, addresses[_A_CL_TRANSITION])
-        _call5(_sandwich, addresses[_A_SANDWICH], work.An, P, st.Qn, work.APn, work.N)
-        _call2(_condition, addresses[_A_CONDITION], work, st)
-        _call2(_time_update, addresses[_A_TIME_UPDATE], work, st)
-        _call3(_constrain_into, addresses[_A_CONSTRAIN], work, p, addresses[_A_CL_CONSTRAIN])
-        _call5(_observation_into, addresses[_A_OBSERVATION], work, ut, t, p, addresses[_A_CL_OBSERVATION])
-        _call3(_kalman_update, addresses[_A_KALMAN_UPDATE], work, st, t)
-        mx, total, deg = _call4(_weigh, addresses[_A_WEIGH], lw, work.ll, wu, work.cdf)
-        out.degen[t] = deg
-        out.inc[t] = -_np.inf if deg else mx + _np.log(total)
-        out.ess[t] = _call5(_moments, addresses[_A_MOMENTS], xs, wu, total, work.mean_n, work.var_n)
-        _call5(_moments, addresses[_A_MOMENTS], mm, wu, total, work.mean_l, work.var_l)
-        _call5(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], work, st, out, t, total)
-        _resample(scheme, wu, work.cdf, rng, idx)
+        _call2(_normals_into, addresses[_A_NORMALS], rng, z)
+        _call7(_transition_into, addresses[_A_TRANSITION], xn, ut, t, p, tn, tl, addresses[_A_CL_TRANSITION])
+        _call5(_sandwich, addresses[_A_SANDWICH], An, P, Qn, APn, N)
+        _call8(_condition, addresses[_A_CONDITION], tn, tl, prior, fac, noise, xnew, cond, lin)
+        _call5(_time_update, addresses[_A_TIME_UPDATE], lin, cond, Ql, APl, pred)
+        _call4(_constrain_into, addresses[_A_CONSTRAIN], xnew, p, xs, addresses[_A_CL_CONSTRAIN])
+        _call7(_observation_into, addresses[_A_OBSERVATION], xs, m_pred, ut, t, p, obs, addresses[_A_CL_OBSERVATION])
+        _call7(_kalman_update, addresses[_A_KALMAN_UPDATE], obs, pred, meas, t, upd, ll, cond)
+        mx, total, deg = _call4(_weigh, addresses[_A_WEIGH], lw, ll, wu, cdf)
+        degen[t] = deg
+        inc[t] = -_np.inf if deg else mx + _np.log(total)
+        ess[t] = _call5(_moments, addresses[_A_MOMENTS], xs, wu, total, mean_n, var_n)
+        _call5(_moments, addresses[_A_MOMENTS], mm, wu, total, mean_l, var_l)
+        _call8(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], wu, total, mom, xs, cond, split, est[t], cov[t])
+        _resample(scheme, wu, cdf, rng, idx)
         for i in range(n):
             j = idx[i]
             for a in range(d_n):
@@ -186,7 +196,7 @@ def run_linear(p, u, st, out, work, addresses):
     """The d_n = 0 case of :func:`run` (every state in x^l): one Kalman/EKF recursion, no random
     numbers, no resampling; the same operations as :func:`run` with one particle, compiled without
     the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`;
-    ``work`` holds one copy (n = 1, d_n = 0) whose x^l state is ``mm``, ``Pm`` (what the
+    ``work`` holds one copy (n = 1, d_n = 0) whose x^l state is ``work.cond`` (what the
     measurement update writes and the time update reads).
 
     The one copy's weight is exp(0) = 1 whatever its likelihood, so the weighting of :func:`run`
@@ -205,30 +215,31 @@ def run_linear(p, u, st, out, work, addresses):
     model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with the steps inlined vs
     by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
     """
-    d_l = st.idx_l.shape[0]
+    d_l = st.split.l.shape[0]
     xn = _np.empty((1, 0))
-    m, P, m0, P0 = work.mm, work.Pm, st.m0, st.P0
+    cond, pred, lin, obs, wts, mom = work.cond, work.pred, work.lin, work.obs, work.wts, work.mom
+    m, P, m0, P0 = cond.m, cond.P, st.prior.m, st.prior.P
     for a in range(d_l):
         m[0, a] = m0[a]
         for b in range(d_l):
             P[0, a, b] = P0[a, b]
-    work.wu[0] = 1.0
-    mean_l = work.mean_l
-    for t in range(st.yw.shape[0]):
+    wts.wu[0] = 1.0
+    mean_l = mom.mean_l
+    for t in range(st.meas.yw.shape[0]):
         ut = u[t]
         _, _, fl_, Al_ = _cl_transition(xn, ut, t, p)
-        _copy_into(fl_, work.f)
-        _copy_into(Al_, work.A)
-        _call2(_time_update, addresses[0], work, st)
-        h_, C_ = _cl_observation(xn, work.m_pred, ut, t, p)
-        _copy_into(h_, work.h)
-        _copy_into(C_, work.C)
-        _call3(_kalman_update, addresses[1], work, st, t)
-        v = _valid(work.ll[0])
+        _copy_into(fl_, lin.f)
+        _copy_into(Al_, lin.A)
+        _call5(_time_update, addresses[0], lin, cond, st.noise.Ql, work.APl, pred)
+        h_, C_ = _cl_observation(xn, pred.m, ut, t, p)
+        _copy_into(h_, obs.f)
+        _copy_into(C_, obs.A)
+        _call7(_kalman_update, addresses[1], obs, pred, st.meas, t, work.upd, wts.ll, cond)
+        v = _valid(wts.ll[0])
         deg = not (v > -_np.inf)
         out.degen[t] = deg
         out.inc[t] = -_np.inf if deg else v
         out.ess[t] = 1.0
         for a in range(d_l):
             mean_l[a] = m[0, a]
-        _call5(_mixture_moments, addresses[2], work, st, out, t, 1.0)
+        _call8(_mixture_moments, addresses[2], wts.wu, 1.0, mom, work.xs, cond, st.split, out.est[t], out.cov[t])
