@@ -163,8 +163,8 @@ class Work(NamedTuple):
 def work_arrays(xn, d_l: int, n_y: int) -> Work:
     """The kernel's arrays for the x^n particles ``xn`` (n, d_n), float64 C (kept as
     :attr:`Work.xn`; None: the Kalman driver, one copy, no x^n), d_l linear states and n_y
-    outputs. Allocated by the host: a nested named tuple built in compiled code compiled slower
-    than the driver's unboxing of it."""
+    outputs. Allocated by the host: the same groups built in the driver (compiled code) compiled no
+    faster than the driver's unboxing of them."""
     if xn is None:
         xn = np.empty((1, 0))
     n, d_n = xn.shape
