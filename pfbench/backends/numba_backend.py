@@ -16,7 +16,7 @@ import numpy as np
 from ..methods import Estimate
 from ..procs import free_cores
 from ..resampling import Scheme
-from . import compile_helper, native_call, pcg64
+from . import compile_helper, guided_work, mpf_work, native_call, pcg64
 from .kernels import build, column_major_tiles
 from .particle_work import Outputs, Settings, Step, pass_types, work_arrays
 
@@ -177,46 +177,69 @@ def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
     recursion, no random numbers and no scheme); ``s``: the model's structure
     (:func:`pfbench.filters.marginalized.structure`); fills the outputs in place."""
     u = np.ascontiguousarray(u)  # its rows are then the C arrays _run_calls types
+    st = mpf_work.structure_group(s)
+    out = mpf_work.Outputs(est, cov, ess, inc, degen)
+    work = mpf_work.work_arrays(xn, int(s["d_l"]), st.meas.yw.shape[1])
     if s["d_n"] == 0:
         mod = build("mpf", model, None)
-        args = [p, s["yw"], u, s["idx_l"], s["Ql"], s["W"], s["rvar"], s["whiten"], s["logdet"], s["m0"],
-                s["P0"], est, cov, ess, inc, degen, 0, 0, 0]
-        args[-3:] = native_addresses(model, "mpf", mod, mod.run_linear, args, _step_calls(s, est, cov))
-        mod.run_linear(*args)
+        args = (p, u, st, out, work, np.zeros(len(mod.LINEAR_CALLS), np.int64))
+        addresses = _call_addresses(mod.run_linear, args, lambda: native_addresses(
+            model, "mpf", mod, mod.run_linear, args,
+            [(name, *_step_calls(st, out, work)[name]) for name in mod.LINEAR_CALLS]))
+        mod.run_linear(*args[:-1], addresses)
         return
     mod = build("mpf", model, scheme)
-    args = [p, rng, s["yw"], u, xn, s["idx_n"], s["idx_l"], s["Qn"], s["Ql"], s["T"], s["corr"], s["W"],
-            s["rvar"], s["whiten"], s["logdet"], s["m0"], s["P0"], scheme, est, cov, ess, inc, degen,
-            np.zeros(len(mod.RUN_CALLS), np.int64)]
-    args[-1] = np.array(native_addresses(model, "mpf", mod, mod.run, args, _run_calls(mod, p, rng, u, s, est, cov),
-                                         here=_RUN_HERE), np.int64)
-    mod.run(*args)
+    args = (p, rng, u, st, out, work, int(scheme), np.zeros(len(mod.RUN_CALLS), np.int64))
+
+    def find():
+        calls = {**_run_calls(p, rng, u, st, work), **_step_calls(st, out, work)}
+        return native_addresses(model, "mpf", mod, mod.run, args, [(name, *calls[name]) for name in mod.RUN_CALLS],
+                                here=_RUN_HERE)
+
+    mod.run(*args[:-1], _call_addresses(mod.run, args, find))
 
 
-def _step_types(s, est, cov) -> dict:
-    """Name -> (argument types, return type) of the step math both drivers call by address
-    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` in ``pfbench.backends.numba_mpf``):
-    the kernel's own float64 C arrays, and the structure arrays ``s``, a row of ``yw`` and of the
-    outputs ``est``, ``cov`` as they are passed (both drivers pass an int64 C array for x^n's
-    indices, the Kalman driver an empty one)."""
+#: (driver, the type fingerprints of its arguments) -> the int64 array of the entry addresses of
+#: the functions it calls by address (MPF and guided drivers): found once per process, as the
+#: particle kernel's passes are (:data:`_PASS_ADDRESSES`). The argument types of those calls are
+#: ``numba.typeof`` of the groups passed, which costs milliseconds for the MPF's (numba types its
+#: 37 work arrays one by one); the fingerprints, what numba's dispatcher keys its compiled code on,
+#: take 10 us
+_CALL_ADDRESSES: dict = {}
+
+
+def _call_addresses(driver, args, find) -> np.ndarray:
+    """The addresses ``find()`` returns (:func:`native_addresses`) for ``driver`` called with
+    ``args``, looked up in :data:`_CALL_ADDRESSES` first."""
+    import numba
+    from numba._dispatcher import compute_fingerprint
+
+    key = [driver]
+    for a in args:
+        try:
+            key.append(compute_fingerprint(a))
+        except NotImplementedError:  # no fingerprint (a generator): its numba type
+            key.append(numba.typeof(a))
+    key = tuple(key)
+    addresses = _CALL_ADDRESSES.get(key)
+    if addresses is None:
+        addresses = _CALL_ADDRESSES.setdefault(key, np.array(find(), np.int64))
+    return addresses
+
+
+def _step_calls(st, out, work) -> dict:
+    """Name -> (argument types, return type) of the step math both MPF drivers call by address
+    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` of
+    :mod:`pfbench.backends.numba_mpf_steps`): the types of the groups the host hands the driver
+    (:mod:`pfbench.backends.mpf_work`) and of the step ``t`` and weight sum. The driver's compile
+    refuses other types (:func:`pfbench.backends.native_call.caller`)."""
     import numba
 
-    f64, none = numba.types.float64, numba.types.none
-    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
-    ty = numba.typeof
-    return {"_time_update": ((a2, a3, a2, a3, ty(s["Ql"]), a3, a2, a3), none),
-            "_kalman_update": ((a2, a3, a2, a3, ty(s["yw"][0]), ty(s["W"]), ty(s["rvar"]), ty(s["whiten"]),
-                                ty(s["logdet"]), a1, a2, a1, a1, a2, a3), none),
-            "_mixture_moments": ((a1, f64, a1, a1, a2, a2, a3, ty(s["idx_n"]), ty(s["idx_l"]), a2, ty(est[0]),
-                                  ty(cov[0])), none)}
-
-
-def _step_calls(s, est, cov) -> list:
-    """``(name, argument types, return type)`` of the Kalman driver's calls of the step math, made
-    by address (:func:`_step_types`). The driver's compile refuses other types
-    (:func:`pfbench.backends.native_call.caller`)."""
-    steps = _step_types(s, est, cov)
-    return [(name, *steps[name]) for name in ("_time_update", "_kalman_update", "_mixture_moments")]
+    none, w = numba.types.none, work
+    return {"_time_update": (pass_types(w.lin, w.cond, st.noise.Ql, w.APl, w.pred), none),
+            "_kalman_update": (pass_types(w.obs, w.pred, st.meas, 0, w.upd, w.wts.ll, w.cond), none),
+            "_mixture_moments": (pass_types(w.wts.wu, 0.0, w.mom, w.xs, w.cond, st.split, out.est[0], out.cov[0]),
+                                 none)}
 
 
 #: the functions of :data:`pfbench.backends.numba_mpf.RUN_CALLS` that a cold start compiles in
@@ -227,35 +250,32 @@ def _step_calls(s, est, cov) -> list:
 _RUN_HERE = ("_normals_into", "_sandwich", "_condition", "_time_update", "_weigh", "_moments", "_mixture_moments")
 
 
-def _run_calls(mod, p, rng, u, s, est, cov) -> list:
-    """``(name, argument types, return type)`` of the functions the numba MPF kernel's driver ``run``
-    calls by address, in the order of ``mod.RUN_CALLS``: the model's ``cl_transition``,
-    ``cl_observation`` and ``cl_constrain`` (return type None: whatever the model returns, known
-    once they are compiled, which is done before their callers), the three wrappers that call them
-    (``_transition_into``, ``_observation_into``, ``_constrain_into``) and the step math. The particle
-    and output arrays are the kernel's own float64 C arrays, ``u[t]`` a row of the C-contiguous
-    ``u``, the structure arrays ``s`` and the rows of ``yw``, ``est`` and ``cov`` as they are passed.
-    The driver's compile refuses other types (:func:`pfbench.backends.native_call.caller`)."""
+def _run_calls(p, rng, u, st, work) -> dict:
+    """Name -> (argument types, return type) of the other functions the numba MPF driver ``run``
+    calls by address (:data:`pfbench.backends.numba_mpf.RUN_CALLS`): the model's
+    ``cl_transition``, ``cl_observation`` and ``cl_constrain`` on the :class:`~pfbench.backends.mpf_work.Work`
+    arrays they get (return type None: whatever the model returns, known once they are compiled,
+    which is done before their callers), the three wrappers that call them
+    (``_transition_into``, ``_observation_into``, ``_constrain_into``), the x^n noise, the
+    ``sandwich`` and ``condition`` of steps 1-2 and the weights and moments: each the types of the
+    objects the driver passes (``u[t]`` a row of the C-contiguous ``u``, ``t`` and the model's
+    address int64, the weight sum float64). The driver's compile refuses other types
+    (:func:`pfbench.backends.native_call.caller`)."""
     import numba
 
-    f64, i64, none, b = numba.types.float64, numba.types.int64, numba.types.none, numba.types.boolean
-    a1, a2, a3 = (numba.types.Array(f64, k, "C") for k in (1, 2, 3))
-    ty = numba.typeof
-    pt, ut = ty(p), ty(u[0])
-    calls = {"_cl_transition": ((a2, ut, i64, pt), None),
-             "_cl_observation": ((a2, a2, ut, i64, pt), None),
-             "_cl_constrain": ((a2, pt), None),
-             "_transition_into": ((a2, ut, i64, pt, a2, a3, a2, a3, i64), none),
-             "_observation_into": ((a2, a2, ut, i64, pt, a2, a3, i64), none),
-             "_constrain_into": ((a2, pt, a2, i64), none),
-             "_normals_into": ((ty(rng), a2), none),
-             "_sandwich": ((a3, a3, ty(s["Qn"]), a3, a3), none),
-             "_condition": ((a2, a3, a2, a3, a2, a3, a2, a3, a3, ty(s["T"]), ty(s["corr"]), a3, a1, a2, a2, a2, a3,
-                             a2, a3), none),
-             "_weigh": ((a1, a1, a1, a1), numba.types.Tuple((f64, f64, b))),
-             "_moments": ((a2, a1, f64, a1, a1), f64),
-             **_step_types(s, est, cov)}
-    return [(name, *calls[name]) for name in mod.RUN_CALLS]
+    t = numba.types
+    none, ut, w = t.none, u[0], work
+    return {"_cl_transition": (pass_types(w.xn, ut, 0, p), None),
+            "_cl_observation": (pass_types(w.xs, w.pred.m, ut, 0, p), None),
+            "_cl_constrain": (pass_types(w.xnew, p), None),
+            "_transition_into": (pass_types(w.xn, ut, 0, p, w.tn, w.tl, 0), none),
+            "_observation_into": (pass_types(w.xs, w.pred.m, ut, 0, p, w.obs, 0), none),
+            "_constrain_into": (pass_types(w.xnew, p, w.xs, 0), none),
+            "_normals_into": (pass_types(rng, w.fac.z), none),
+            "_sandwich": (pass_types(w.tn.A, w.prior.P, st.noise.Qn, w.fac.APn, w.fac.N), none),
+            "_condition": (pass_types(w.tn, w.tl, w.prior, w.fac, st.noise, w.xnew, w.cond, w.lin), none),
+            "_weigh": (pass_types(w.wts.lw, w.wts.ll, w.wts.wu, w.wts.cdf), t.Tuple((t.float64, t.float64, t.boolean))),
+            "_moments": (pass_types(w.xs, w.wts.wu, 0.0, w.mom.mean_n, w.mom.var_n), t.float64)}
 
 
 # --------------------------------------------------------------------------- the guided family
@@ -265,23 +285,26 @@ def run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est
     y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types _model_calls gives
     mod = build("guided", model, scheme)
     driver = getattr(mod, f"run_{kind}")
-    args = [p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, res, degen, np.zeros(2, np.int64)]
-    args[-1] = np.array(native_addresses(model, "guided", mod, driver, args, _model_calls(kind, p, y, u, x, n_noise)),
-                        np.int64)
-    driver(*args)
+    out = guided_work.Outputs(est, var, ess, inc, res, degen)
+    settings = guided_work.Settings(int(n_noise), int(scheme), float(threshold))
+    args = (p, rng, y, u, x, lw, out, settings)
+    propose, weight = _call_addresses(driver, args, lambda: native_addresses(
+        model, "guided", mod, driver, args, _model_calls(kind, p, y, u, x, n_noise)))
+    driver(*args[:-1], settings._replace(propose=int(propose), weight=int(weight)))
 
 
 def _model_calls(kind, p, y, u, x, n_noise) -> list:
     """``(name, argument types, return type)`` of the two model calls a whole run makes by address
     (:mod:`pfbench.backends.numba_guided`, "the model's calls"): the proposal, then the proposal's
-    weight (``kind`` "proposal") or the predictive likelihood ("optimal"), typed as the kernel
-    calls them (C-contiguous ``y``, ``u``; ``x`` the particles; float64 noise and weights)."""
+    weight (``kind`` "proposal") or the predictive likelihood ("optimal"), each ``numba.typeof``
+    of what the kernel passes: rows of the C-contiguous ``y``, ``u``, the particles ``x``, the step
+    (int64) and arrays like the ones the kernel allocates for the noise, the new particles and the
+    log-likelihoods (float64, C order)."""
     import numba
 
-    t = numba.types
-    px, xn, row_y, row_u = numba.typeof(x), numba.typeof(np.empty_like(x)), numba.typeof(y[0]), numba.typeof(u[0])
-    pt, f1, f2 = numba.typeof(p), numba.typeof(np.empty(1)), numba.typeof(np.empty((1, n_noise)))
-    calls = [("_propose_into", (px, row_y, row_u, t.int64, f2, pt, xn), t.none)]
+    none = numba.types.none
+    noise, xn, ll = np.empty((1, n_noise)), np.empty_like(x), np.empty(1)
+    calls = [("_propose_into", pass_types(x, y[0], u[0], 0, noise, p, xn), none)]
     if kind == "proposal":
-        return calls + [("_weight_into", (xn, px, row_y, row_u, t.int64, pt, f1), t.none)]
-    return calls + [("_predictive_into", (row_y, px, row_u, t.int64, pt, f1), t.none)]
+        return calls + [("_weight_into", pass_types(xn, x, y[0], u[0], 0, p, ll), none)]
+    return calls + [("_predictive_into", pass_types(y[0], x, u[0], 0, p, ll), none)]

@@ -5,8 +5,9 @@ the same random draws in the same order, the same weighting (:mod:`pfbench.backe
 and resampling (:mod:`pfbench.backends.numba_resampling`, the scheme bound as ``_resample``). It calls the model through
 four module globals, ``_initial``, ``_proposal``, ``_proposal_log_weight`` and
 ``_predictive_log_likelihood``. As a file it is importable (they are placeholders here);
-:func:`pfbench.backends.numba_backend.kernel_module` (family ``"guided"``) writes a copy of it per
-model class with the model's compiled functions bound to those names at the end.
+:func:`pfbench.backends.kernels.build` (family ``"guided"``) runs it per model class with the
+model's compiled functions bound to those names. A whole run takes the named groups of
+:mod:`pfbench.backends.guided_work`.
 
 Each kind of proposal has its own step and run functions, so numba only ever compiles the model
 functions that kind uses (a model with its own proposal need not define
@@ -56,7 +57,7 @@ _call7 = _caller(7)
 
 # --------------------------------------------------------------------------- the model's calls
 # A whole run (``run_proposal``/``run_optimal``, in a scheme's module) calls the model through
-# these, by address (:mod:`pfbench.backends.native_call`; ``addresses`` = [proposal, weight]): they
+# these, by address (:mod:`pfbench.backends.native_call`; ``addresses`` = (proposal, weight)): they
 # are the model's code, compiled once per model for all schemes (``SCHEME_FREE`` in
 # :mod:`pfbench.backends.numba_backend`) and, on a cold cache, in a helper process while the run
 # compiles here (:mod:`pfbench.backends.compile_helper`). The any-scheme module, which serves
@@ -180,26 +181,30 @@ def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, 
 
 
 @_njit(nogil=True)
-def run_proposal(p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen,
-                 addresses):
-    """All M steps with the model's own proposal; outputs (M, ...) filled in place.
+def run_proposal(p, rng, y, u, x, lw, out, settings):
+    """All M steps with the model's own proposal; ``out`` (a
+    :class:`~pfbench.backends.guided_work.Outputs`, (M, ...) arrays) filled in place.
 
     ``x``, ``lw``: the initial particles and log-weights, drawn from ``rng`` by the caller with the
     model's NumPy ``initial`` (:func:`pfbench.filters.guided.numpy_init`, the NumPy reference's
     draw; the kernel continues the same stream), so a whole run does not compile the model's
-    ``initial`` (measured: 1.55 s of a cold start on the reduced PMSM model). ``addresses``: the
-    native entry points of ``_propose_into`` and ``_weight_into`` (int64 array)."""
+    ``initial`` (measured: 1.55 s of a cold start on the reduced PMSM model). ``settings``: a
+    :class:`~pfbench.backends.guided_work.Settings`, with the native entry points of
+    ``_propose_into`` and ``_weight_into``."""
+    addresses = (settings.propose, settings.weight)
+    n_noise, scheme, threshold = settings.n_noise, settings.scheme, settings.threshold
     for t in range(y.shape[0]):
-        inc[t], ess[t], resampled[t], degen[t] = step_proposal(
-            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t], addresses)
+        out.inc[t], out.ess[t], out.resampled[t], out.degen[t] = step_proposal(
+            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, out.est[t], out.var[t], addresses)
 
 
 @_njit(nogil=True)
-def run_optimal(p, rng, y, u, x, lw, n_noise, scheme, threshold, est, var, ess, inc, resampled, degen,
-                addresses):
-    """All M steps with the locally optimal proposal; outputs (M, ...) filled in place (``x``,
-    ``lw`` initialised by the caller, as for :func:`run_proposal`; ``addresses``: those of
+def run_optimal(p, rng, y, u, x, lw, out, settings):
+    """All M steps with the locally optimal proposal; ``out`` filled in place (``x``, ``lw``
+    initialised by the caller, as for :func:`run_proposal`; ``settings`` holds the addresses of
     ``_propose_into`` and ``_predictive_into``)."""
+    addresses = (settings.propose, settings.weight)
+    n_noise, scheme, threshold = settings.n_noise, settings.scheme, settings.threshold
     for t in range(y.shape[0]):
-        inc[t], ess[t], resampled[t], degen[t] = step_optimal(
-            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, est[t], var[t], addresses)
+        out.inc[t], out.ess[t], out.resampled[t], out.degen[t] = step_optimal(
+            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, out.est[t], out.var[t], addresses)

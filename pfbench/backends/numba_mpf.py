@@ -14,9 +14,9 @@ scheme bound as ``_resample``). The model is called through the module globals
 on all particles: :func:`run` through three wrappers called by address, which call the model
 by address in turn (see "the model's calls" below), :func:`run_linear` directly (it calls the
 step math by address instead).
-:func:`pfbench.backends.numba_backend.kernel_module` writes a copy of this file per model class
-with the model's compiled functions bound to those names, so numba caches the whole kernel on
-disk.
+:func:`pfbench.backends.kernels.build` runs this file per model class with the model's compiled
+functions bound to those names, so numba caches the whole kernel on disk. The drivers and the
+functions they call by address take the named groups of :mod:`pfbench.backends.mpf_work`.
 
 Two entry points, so a call compiles only what it runs: :func:`run` for models with nonlinear
 states (d_n > 0) and :func:`run_linear` for d_n = 0 (the ``kalman`` method and the MPF on a fully
@@ -41,15 +41,12 @@ from pfbench.backends.native_call import caller as _caller
 _call2 = _caller(2)
 _call4 = _caller(4)
 _call5 = _caller(5)
+_call7 = _caller(7)
 _call8 = _caller(8)
-_call9 = _caller(9)
-_call12 = _caller(12)
-_call15 = _caller(15)
-_call19 = _caller(19)
 
 #: the functions :func:`run` calls by address, in the order of its ``addresses`` (their argument
-#: types: ``pfbench.filters.marginalized._run_calls``): the model's functions, the wrappers that
-#: call them, then the step math
+#: types: ``_run_calls`` and ``_step_calls`` of :mod:`pfbench.backends.numba_backend`): the model's
+#: functions, the wrappers that call them, then the step math
 RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_into", "_observation_into",
              "_constrain_into", "_normals_into", "_sandwich", "_condition", "_time_update", "_kalman_update", "_weigh",
              "_moments", "_mixture_moments")
@@ -78,21 +75,22 @@ _resample = _b.resample
 # its own function, not again inside each wrapper (measured: 0.9 s of a cold Ob5 start). None of
 # them is called from Python (``no_cpython_wrapper``: 0.03-0.05 s less to compile each).
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _transition_into(xn, u, t, p, fn, An, fl, Al, model_address):
-    """``cl_transition(xn, u, t, p)`` into f^n, A^n, f^l, A^l."""
+def _transition_into(xn, u, t, p, tn, tl, model_address):
+    """``cl_transition(xn, u, t, p)`` into f^n, A^n (``tn``) and f^l, A^l (``tl``,
+    :class:`~pfbench.backends.mpf_work.Affine`)."""
     a, b, c, d = _call4(_cl_transition, model_address, xn, u, t, p)
-    _copy_into(a, fn)
-    _copy_into(b, An)
-    _copy_into(c, fl)
-    _copy_into(d, Al)
+    _copy_into(a, tn.f)
+    _copy_into(b, tn.A)
+    _copy_into(c, tl.f)
+    _copy_into(d, tl.A)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
-def _observation_into(xn, xl, u, t, p, h, C, model_address):
-    """``cl_observation(xn, xl, u, t, p)`` into h, C."""
+def _observation_into(xn, xl, u, t, p, obs, model_address):
+    """``cl_observation(xn, xl, u, t, p)`` into h, C (``obs``)."""
     a, b = _call5(_cl_observation, model_address, xn, xl, u, t, p)
-    _copy_into(a, h)
-    _copy_into(b, C)
+    _copy_into(a, obs.f)
+    _copy_into(b, obs.A)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
@@ -108,22 +106,21 @@ _constrain_into = _b.shared("_constrain_into", _constrain_into)
 
 # --------------------------------------------------------------------------- entry points
 @_njit(nogil=True)
-def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet, m0, P0, scheme,
-        est, cov, ess, inc, degen, addresses):
-    """Run the MPF over all steps from the initial x^n particles ``xn`` (n, d_n), C-contiguous
+def run(p, rng, u, st, out, work, scheme, addresses):
+    """Run the MPF over all steps from the initial x^n particles ``work.xn`` (n, d_n), C-contiguous
     float64, updated in place (one random stream, documented order).
 
-    ``xn`` is drawn from ``rng`` by the caller with the model's NumPy ``initial``, as the NumPy
-    reference draws it (the kernel continues the same stream), so the kernel does not compile the
-    model's ``initial`` (measured: 1.3 s of a cold Ob5 start).
+    ``work.xn`` is drawn from ``rng`` by the caller with the model's NumPy ``initial``, as the
+    NumPy reference draws it (the kernel continues the same stream), so the kernel does not
+    compile the model's ``initial`` (measured: 1.3 s of a cold Ob5 start).
 
-    ``y`` (M, n_y) are the (whitened, if ``whiten``) measurements; ``idx_n``/``idx_l`` the state
-    indices of x^n/x^l (d_n > 0; :func:`run_linear` serves d_n = 0); the noise and whitening
-    arrays as prepared by ``pfbench.filters.marginalized.structure``; ``scheme`` a
-    :class:`~pfbench.resampling.Scheme` code. Fills est (M, n_x), cov (M, n_x, n_x), ess, inc,
-    degen (M,). ``addresses``: the native entry points of the functions in :data:`RUN_CALLS`,
-    in that order, compiled for the argument types of their calls here
-    (:func:`pfbench.backends.native_call.entry_address`).
+    ``st``: the model's :class:`~pfbench.backends.mpf_work.Structure` (d_n > 0; :func:`run_linear`
+    serves d_n = 0), its ``yw`` (M, n_y) the (whitened, if ``whiten``) measurements; ``out``: the
+    :class:`~pfbench.backends.mpf_work.Outputs` est (M, n_x), cov (M, n_x, n_x), ess, inc, degen
+    (M,), filled; ``work``: the :class:`~pfbench.backends.mpf_work.Work` arrays; ``scheme`` a
+    :class:`~pfbench.resampling.Scheme` code. ``addresses``: the native entry points of the
+    functions in :data:`RUN_CALLS`, in that order, compiled for the argument types of their calls
+    here (:func:`pfbench.backends.native_call.entry_address`).
 
     Everything it calls per step goes by address, the model's wrappers and the step math alike:
     this function then compiles as a loop of calls (numba links a directly called function into
@@ -140,75 +137,45 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
     4 (``cl_observation``, ``kalman_update``, the weights), step 5 (moments,
     ``mixture_moments``, resampling).
     """
-    d_n = idx_n.shape[0]
-    d_l = idx_l.shape[0]
-    n_y = y.shape[1]
+    # every group and array the loop uses, taken out of the groups once: the loop is then the same
+    # statements as on plain arguments (each field read in it is compile time, once per statement)
+    xn, xnew, xs, prior, cond, pred, tn, tl, lin = (work.xn, work.xnew, work.xs, work.prior, work.cond, work.pred,
+                                                    work.tn, work.tl, work.lin)
+    fac, APl, obs, upd, wts, mom = work.fac, work.APl, work.obs, work.upd, work.wts, work.mom
+    m, P, mm, Pm, m_pred, An = prior.m, prior.P, cond.m, cond.P, pred.m, tn.A
+    z, APn, N = fac.z, fac.APn, fac.N
+    ll, lw, wu, cdf, idx = wts.ll, wts.lw, wts.wu, wts.cdf, wts.idx
+    mean_n, var_n, mean_l, var_l = mom.mean_n, mom.var_n, mom.mean_l, mom.var_l
+    m0, P0, split, noise, meas = st.prior.m, st.prior.P, st.split, st.noise, st.meas
+    Qn, Ql = noise.Qn, noise.Ql
+    est, cov, ess, inc, degen = out.est, out.cov, out.ess, out.inc, out.degen
+    d_n = split.n.shape[0]
+    d_l = split.l.shape[0]
     n = xn.shape[0]
-    m = _np.empty((n, d_l))
-    P = _np.empty((n, d_l, d_l))
     for i in range(n):
         for a in range(d_l):
             m[i, a] = m0[a]
             for b in range(d_l):
                 P[i, a, b] = P0[a, b]
-    xnew = _np.empty((n, d_n))
-    z = _np.empty((n, d_n))
-    APn = _np.empty((n, d_n, d_l))
-    N = _np.empty((n, d_n, d_n))
-    L = _np.empty((n, d_n, d_n))
-    w = _np.empty(d_n)
-    V = _np.empty((d_n, d_l))
-    f = _np.empty((n, d_l))
-    A = _np.empty((n, d_l, d_l))
-    APl = _np.empty((n, d_l, d_l))
-    mm = _np.empty((n, d_l))
-    Pm = _np.empty((n, d_l, d_l))
-    m_pred = _np.empty((n, d_l))
-    P_pred = _np.empty((n, d_l, d_l))
-    h0 = _np.empty(n_y)
-    H = _np.empty((n_y, d_l))
-    PH = _np.empty(d_l)
-    fn = _np.empty((n, d_n))
-    An = _np.empty((n, d_n, d_l))
-    fl = _np.empty((n, d_l))
-    Al = _np.empty((n, d_l, d_l))
-    xs = _np.empty((n, d_n))
-    h = _np.empty((n, n_y))
-    C = _np.empty((n, n_y, d_l))
-    dev = _np.empty((n, d_n + d_l))
-    ll = _np.empty(n)
-    lw = _np.empty(n)
     lw0 = -_np.log(n)
     for i in range(n):
         lw[i] = lw0
-    wu = _np.empty(n)
-    cdf = _np.empty(n)
-    idx = _np.empty(n, _np.int64)
-    mean_n = _np.empty(d_n)
-    var_n = _np.empty(d_n)
-    mean_l = _np.empty(d_l)
-    var_l = _np.empty(d_l)
-    for t in range(y.shape[0]):
+    for t in range(meas.yw.shape[0]):
         ut = u[t]
         _call2(_normals_into, addresses[_A_NORMALS], rng, z)
-        _call9(_transition_into, addresses[_A_TRANSITION], xn, ut, t, p, fn, An, fl, Al,
-               addresses[_A_CL_TRANSITION])
+        _call7(_transition_into, addresses[_A_TRANSITION], xn, ut, t, p, tn, tl, addresses[_A_CL_TRANSITION])
         _call5(_sandwich, addresses[_A_SANDWICH], An, P, Qn, APn, N)
-        _call19(_condition, addresses[_A_CONDITION], fn, An, fl, Al, m, P, z, N, APn, T, corr, L, w, V, xnew, mm,
-                Pm, f, A)
-        _call8(_time_update, addresses[_A_TIME_UPDATE], f, A, mm, Pm, Ql, APl, m_pred, P_pred)
+        _call8(_condition, addresses[_A_CONDITION], tn, tl, prior, fac, noise, xnew, cond, lin)
+        _call5(_time_update, addresses[_A_TIME_UPDATE], lin, cond, Ql, APl, pred)
         _call4(_constrain_into, addresses[_A_CONSTRAIN], xnew, p, xs, addresses[_A_CL_CONSTRAIN])
-        _call8(_observation_into, addresses[_A_OBSERVATION], xs, m_pred, ut, t, p, h, C,
-               addresses[_A_CL_OBSERVATION])
-        _call15(_kalman_update, addresses[_A_KALMAN_UPDATE], h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet, h0,
-                H, PH, ll, mm, Pm)
+        _call7(_observation_into, addresses[_A_OBSERVATION], xs, m_pred, ut, t, p, obs, addresses[_A_CL_OBSERVATION])
+        _call7(_kalman_update, addresses[_A_KALMAN_UPDATE], obs, pred, meas, t, upd, ll, cond)
         mx, total, deg = _call4(_weigh, addresses[_A_WEIGH], lw, ll, wu, cdf)
         degen[t] = deg
         inc[t] = -_np.inf if deg else mx + _np.log(total)
         ess[t] = _call5(_moments, addresses[_A_MOMENTS], xs, wu, total, mean_n, var_n)
         _call5(_moments, addresses[_A_MOMENTS], mm, wu, total, mean_l, var_l)
-        _call12(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], wu, total, mean_n, mean_l, xs, mm, Pm, idx_n, idx_l,
-                dev, est[t], cov[t])
+        _call8(_mixture_moments, addresses[_A_MIXTURE_MOMENTS], wu, total, mom, xs, cond, split, est[t], cov[t])
         _resample(scheme, wu, cdf, rng, idx)
         for i in range(n):
             j = idx[i]
@@ -220,12 +187,17 @@ def run(p, rng, y, u, xn, idx_n, idx_l, Qn, Ql, T, corr, W, rvar, whiten, logdet
                     P[i, a, b] = Pm[j, a, b]
 
 
+#: the functions :func:`run_linear` calls by address, in the order of its ``addresses``
+LINEAR_CALLS = ("_time_update", "_kalman_update", "_mixture_moments")
+
+
 @_njit(nogil=True)
-def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, ess, inc, degen,
-               time_update_address, kalman_update_address, mixture_moments_address):
+def run_linear(p, u, st, out, work, addresses):
     """The d_n = 0 case of :func:`run` (every state in x^l): one Kalman/EKF recursion, no random
     numbers, no resampling; the same operations as :func:`run` with one particle, compiled without
-    the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`.
+    the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`;
+    ``work`` holds one copy (n = 1, d_n = 0) whose x^l state is ``work.cond`` (what the
+    measurement update writes and the time update reads).
 
     The one copy's weight is exp(0) = 1 whatever its likelihood, so the weighting of :func:`run`
     reduces to: increment = log p(y_t | Y_{t-1}) (-inf, and ``degen`` set, when that is -inf, +inf
@@ -234,58 +206,40 @@ def run_linear(p, y, u, idx_l, Ql, W, rvar, whiten, logdet, m0, P0, est, cov, es
 
     It calls the model directly (inlined, LLVM optimises the model's code for the one copy and the
     empty x^n, whose shapes (1, 0) it sees; by address a step of the linear-Gaussian filter took
-    2.8 us instead of 2.0 us) and the step math by address instead (``time_update_address``,
-    ``kalman_update_address``, ``mixture_moments_address``: those functions compiled for the
-    argument types of their calls here, :func:`pfbench.filters.marginalized._step_calls`), so a
-    cold start compiles the step math in a helper process while this one compiles the driver and
-    the model (:mod:`pfbench.backends.compile_helper`). The model's arrays are copied into the
-    kernel's own, which gives the steps one argument type for every model. Measured
-    (linear-Gaussian model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with
-    the steps inlined vs by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
+    2.8 us instead of 2.0 us) and the step math by address instead (``addresses``: the functions
+    of :data:`LINEAR_CALLS` compiled for the argument types of their calls here,
+    :func:`pfbench.backends.numba_backend.run_mpf`), so a cold start compiles the step math in a
+    helper process while this one compiles the driver and the model
+    (:mod:`pfbench.backends.compile_helper`). The model's arrays are copied into the kernel's
+    own, which gives the steps one argument type for every model. Measured (linear-Gaussian
+    model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with the steps inlined vs
+    by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
     """
-    d_l = idx_l.shape[0]
-    n_y = y.shape[1]
+    d_l = st.split.l.shape[0]
     xn = _np.empty((1, 0))
-    idx_n = _np.empty(0, _np.int64)
-    mean_n = _np.empty(0)
-    m = _np.empty((1, d_l))
-    P = _np.empty((1, d_l, d_l))
+    cond, pred, lin, obs, wts, mom = work.cond, work.pred, work.lin, work.obs, work.wts, work.mom
+    m, P, m0, P0 = cond.m, cond.P, st.prior.m, st.prior.P
     for a in range(d_l):
         m[0, a] = m0[a]
         for b in range(d_l):
             P[0, a, b] = P0[a, b]
-    AP = _np.empty((1, d_l, d_l))
-    m_pred = _np.empty((1, d_l))
-    P_pred = _np.empty((1, d_l, d_l))
-    h0 = _np.empty(n_y)
-    H = _np.empty((n_y, d_l))
-    PH = _np.empty(d_l)
-    dev = _np.empty((1, d_l))
-    ll = _np.empty(1)
-    wu = _np.empty(1)
-    wu[0] = 1.0
-    mean_l = _np.empty(d_l)
-    fl = _np.empty((1, d_l))
-    Al = _np.empty((1, d_l, d_l))
-    h = _np.empty((1, n_y))
-    C = _np.empty((1, n_y, d_l))
-    for t in range(y.shape[0]):
+    wts.wu[0] = 1.0
+    mean_l = mom.mean_l
+    for t in range(st.meas.yw.shape[0]):
         ut = u[t]
         _, _, fl_, Al_ = _cl_transition(xn, ut, t, p)
-        _copy_into(fl_, fl)
-        _copy_into(Al_, Al)
-        _call8(_time_update, time_update_address, fl, Al, m, P, Ql, AP, m_pred, P_pred)
-        h_, C_ = _cl_observation(xn, m_pred, ut, t, p)
-        _copy_into(h_, h)
-        _copy_into(C_, C)
-        _call15(_kalman_update, kalman_update_address, h, C, m_pred, P_pred, y[t], W, rvar, whiten, logdet,
-                h0, H, PH, ll, m, P)
-        v = _valid(ll[0])
+        _copy_into(fl_, lin.f)
+        _copy_into(Al_, lin.A)
+        _call5(_time_update, addresses[0], lin, cond, st.noise.Ql, work.APl, pred)
+        h_, C_ = _cl_observation(xn, pred.m, ut, t, p)
+        _copy_into(h_, obs.f)
+        _copy_into(C_, obs.A)
+        _call7(_kalman_update, addresses[1], obs, pred, st.meas, t, work.upd, wts.ll, cond)
+        v = _valid(wts.ll[0])
         deg = not (v > -_np.inf)
-        degen[t] = deg
-        inc[t] = -_np.inf if deg else v
-        ess[t] = 1.0
+        out.degen[t] = deg
+        out.inc[t] = -_np.inf if deg else v
+        out.ess[t] = 1.0
         for a in range(d_l):
             mean_l[a] = m[0, a]
-        _call12(_mixture_moments, mixture_moments_address, wu, 1.0, mean_n, mean_l, xn, m, P, idx_n, idx_l,
-                dev, est[t], cov[t])
+        _call8(_mixture_moments, addresses[2], wts.wu, 1.0, mom, work.xs, cond, st.split, out.est[t], out.cov[t])

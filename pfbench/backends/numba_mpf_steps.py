@@ -14,7 +14,9 @@ Each is a function of its own, which the kernel's drivers call by address
 code of all it calls once more. They are few (a compiled function costs a fixed 0.05-0.2 s) and
 call nothing but :func:`sandwich` and, in :func:`normals_into`, the engine's normal draws. None is
 called from Python (``no_cpython_wrapper``), except :func:`copy_into`, which copies what the
-model's structure functions return into the kernel's own arrays.
+model's structure functions return into the kernel's own arrays. Their arguments are the small named
+groups of :mod:`pfbench.backends.mpf_work` (at most eight), read by field name, so their argument
+types are ``numba.typeof`` of the groups the host passes.
 """
 import numpy as np
 
@@ -48,7 +50,7 @@ def sandwich(A, P, Q, AP, S):
 
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
-def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f, A):
+def condition(tn, tl, prior, fac, noise, xnew, cond, lin):
     """[Schon2005] Alg. 1 steps 1-2 up to the time update, for d_n > 0, per particle: the lower
     Cholesky factor ``L`` of N = A^n P A^n' + Q^n (pivots floored at 1e-300; the upper triangle
     is neither written nor read); the sample x^n_t = f^n + A^n m + L z into ``xnew``; x^l_{t-1}
@@ -56,10 +58,16 @@ def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f,
     N^-1 A^n P (by back substitution N^-1 (...) = L^-T z and V = L^-1 A^n P); and the x^l
     transition into ``f``, ``A``: with ``corr`` (a cross-covariance Q^ln) f = f^l + T (x^n_t - f^n)
     and A = A^l - T A^n, T = Q^ln (Q^n)^-1, else f^l and A^l. ``N`` and ``AP`` = A^n P come from
-    :func:`sandwich`; ``w`` (d_n,) and ``V`` (d_n, d_l) are scratch. The twin of
+    :func:`sandwich`; ``w`` (d_n,) and ``V`` (d_n, d_l) are scratch. The groups of
+    :mod:`pfbench.backends.mpf_work`: f^n, A^n in ``tn``, f^l, A^l in ``tl`` (:class:`~pfbench.backends.mpf_work.Affine`),
+    m, P in ``prior``, mm, Pm in ``cond`` (:class:`~pfbench.backends.mpf_work.Gaussians`), f, A in ``lin``; z, N, AP, L, w, V
+    in ``fac`` (:class:`~pfbench.backends.mpf_work.Conditioning`); T, corr in ``noise``. The twin of
     :func:`pfbench.filters.marginalized.cholesky_batch`,
     :func:`~pfbench.filters.marginalized.condition_nonlinear` and the decorrelation of
     :func:`~pfbench.filters.marginalized.kalman_predict`."""
+    fn, An, fl, Al, m, P, T, corr = tn.f, tn.A, tl.f, tl.A, prior.m, prior.P, noise.T, noise.corr
+    z, N, AP, L, w, V = fac.z, fac.N, fac.APn, fac.L, fac.w, fac.V
+    mm, Pm, f, A = cond.m, cond.P, lin.f, lin.A
     n = m.shape[0]
     d_l = m.shape[1]
     d_n = fn.shape[1]
@@ -118,11 +126,14 @@ def condition(fn, An, fl, Al, m, P, z, N, AP, T, corr, L, w, V, xnew, mm, Pm, f,
 
 
 @njit(nogil=True, no_cpython_wrapper=True)
-def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
-    """The linear-Gaussian time update of [Schon2005] Alg. 1 step 2: ``m_pred`` = f + A m and
-    ``P_pred`` = A P A' + Q per particle (``AP`` (n, d_l, d_l) scratch). With d_n = 0 this is the
-    whole prediction of the Kalman filter. The twin of
+def time_update(lin, cond, Q, AP, pred):
+    """The linear-Gaussian time update of [Schon2005] Alg. 1 step 2: the means ``pred.m`` = f + A m
+    and covariances ``pred.P`` = A P A' + Q per particle, for f, A of ``lin``
+    (:class:`~pfbench.backends.mpf_work.Affine`) and m, P of ``cond``
+    (:class:`~pfbench.backends.mpf_work.Gaussians`); ``AP`` (n, d_l, d_l) scratch. With d_n = 0
+    this is the whole prediction of the Kalman filter. The twin of
     :func:`pfbench.filters.marginalized.time_update`."""
+    f, A, m, P, m_pred, P_pred = lin.f, lin.A, cond.m, cond.P, pred.m, pred.P
     n = m.shape[0]
     d_l = m.shape[1]
     for i in range(n):
@@ -135,12 +146,18 @@ def time_update(f, A, m, P, Q, AP, m_pred, P_pred):
 
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
-def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, ll, m, P):
-    """[Schon2005] Alg. 1 step 4: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll`` (n,) and the
-    measurement update into ``m`` (n, d_l), ``P`` (n, d_l, d_l); ``h0`` (n_y,), ``H`` (n_y, d_l),
-    ``PH`` (d_l,) are scratch. Arguments as for :func:`pfbench.filters.marginalized.kalman_update`
-    (its twin): the outputs whitened with ``W`` when ``whiten`` and processed one scalar at a time,
+def kalman_update(obs, pred, meas, t, upd, ll, post):
+    """[Schon2005] Alg. 1 step 4 at step ``t``: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll``
+    (n,) and the measurement update of ``pred`` into ``post`` (means (n, d_l), covariances (n, d_l,
+    d_l), :class:`~pfbench.backends.mpf_work.Gaussians`), for h, C of ``obs``
+    (:class:`~pfbench.backends.mpf_work.Affine`) and y_t the row ``t`` of ``meas.yw``
+    (:class:`~pfbench.backends.mpf_work.Measurement`); h0 (n_y,), H (n_y, d_l), PH (d_l,) of
+    ``upd`` are scratch. The rest as for :func:`pfbench.filters.marginalized.kalman_update` (its
+    twin): the outputs whitened with ``W`` when ``whiten`` and processed one scalar at a time,
     residuals taken about the fixed linearisation point ``m_pred``."""
+    h, C, m_pred, P_pred, m, P = obs.f, obs.A, pred.m, pred.P, post.m, post.P
+    y, W, rvar, whiten, logdet = meas.yw[t], meas.W, meas.rvar, meas.whiten, meas.logdet
+    h0, H, PH = upd.h0, upd.H, upd.PH
     n = m_pred.shape[0]
     d_l = m_pred.shape[1]
     n_y = y.shape[0]
@@ -188,12 +205,14 @@ def kalman_update(h, C, m_pred, P_pred, y, W, rvar, whiten, logdet, h0, H, PH, l
 
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
-def mixture_moments(wu, total, mean_n, mean_l, xn, m, P, idx_n, idx_l, dev, est, cov):
+def mixture_moments(wu, total, mom, xn, post, split, est, cov):
     """[Schon2005] Alg. 1 step 5: the full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x,
-    n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, given the
-    weighted means of x^n (``mean_n``) and of the m_i (``mean_l``): cov = sum_i w_i (d_i d_i' +
-    [0 0; 0 P_i]); ``dev`` (n, n_x) scratch for the d_i. The twin of
+    n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, m_i, P_i of
+    ``post`` (:class:`~pfbench.backends.mpf_work.Gaussians`), given the weighted means of x^n
+    (``mom.mean_n``) and of the m_i (``mom.mean_l``): cov = sum_i w_i (d_i d_i' + [0 0; 0 P_i]);
+    ``mom.dev`` (n, n_x) scratch for the d_i; ``split`` the state indices. The twin of
     :func:`pfbench.filters.marginalized.mixture_moments`."""
+    mean_n, mean_l, dev, m, P, idx_n, idx_l = mom.mean_n, mom.mean_l, mom.dev, post.m, post.P, split.n, split.l
     n = wu.shape[0]
     d_n = idx_n.shape[0]
     d_l = idx_l.shape[0]
