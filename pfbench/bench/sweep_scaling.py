@@ -95,9 +95,11 @@ def timed_sweep(runs: int, workers: int, out: Path, grid=GRID) -> dict:
 
 
 def run_sweep_scaling(seconds: float = SECONDS, workers=None, rounds: int = 3, grid=GRID,
-                      progress: bool = True) -> dict:
+                      progress: bool = True, runs: int | None = None) -> dict:
     """Time the sweep on every worker count of ``workers`` (default :func:`default_workers`; 1 is
-    always added: the speed-ups are against it) in ``rounds`` rounds; the provenance record."""
+    always added: the speed-ups are against it) in ``rounds`` rounds; the provenance record.
+    ``runs`` fixes the sweep's size instead of ``seconds`` (the same sweep on two versions of the
+    code, whatever the machine's speed at calibration)."""
     from ..procs import usable_cores
     from ..progress import progress_bar
     from ..provenance import provenance
@@ -106,7 +108,7 @@ def run_sweep_scaling(seconds: float = SECONDS, workers=None, rounds: int = 3, g
 
     workers = sorted({1, *(int(w) for w in (workers or default_workers()))})
     per_run = run_seconds(grid)
-    runs = max(2, round(float(seconds) / per_run))
+    runs = max(2, round(float(seconds) / per_run)) if runs is None else int(runs)
     spec = _spec(runs, grid)
     bar = progress_bar(show=progress, total=rounds * len(workers), desc="bench --sweep", leave=False)
     times = {w: [] for w in workers}
