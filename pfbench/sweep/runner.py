@@ -192,7 +192,11 @@ class Planner:
                     take.add(ci)
                     a += cost[ci]
                 unit.append((r, [ci for ci in cis if ci in take]))
-                self.queue[0][1] = [ci for ci in cis if ci not in take]
+                rest = [ci for ci in cis if ci not in take]
+                if rest:
+                    self.queue[0][1] = rest
+                else:
+                    self.queue.popleft()
                 acc += a
                 break
         for _, cis in unit:

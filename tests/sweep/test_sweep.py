@@ -130,6 +130,30 @@ def test_planner_batches_tiny_tasks_splits_long_runs_and_hands_out_each_task_onc
     assert len(first) == 1 and first[0][1] == [0, 1, 2]
 
 
+def test_planner_hands_out_every_pending_task_once_whatever_the_times(monkeypatch):
+    """Random grids, partly finished runs, worker counts and measured times (zero included, and no
+    least unit size): every pending task exactly once, no empty group. Catches a split run that
+    leaves an empty group behind or drops its last configuration."""
+    import random
+
+    import pfbench.sweep.runner as runner
+
+    rng = random.Random(1)
+    for _ in range(200):
+        monkeypatch.setattr(runner, "MIN_UNIT_S", rng.choice([0.0, 0.2]))
+        nc, runs = rng.randint(1, 6), rng.randint(1, 30)
+        cfgs = [["bootstrap", rng.choice([10, 100, 1000, 10000]), 1] for _ in range(nc)]
+        pending = [(r, sorted(rng.sample(range(nc), rng.randint(1, nc)))) for r in range(runs)]
+        planner = runner.Planner({"configs": cfgs, "runs": runs}, pending, rng.randint(1, 20))
+        got = []
+        while (unit := planner.next_unit()) is not None:
+            assert unit and all(cis for _, cis in unit)
+            got += [(r, ci) for r, cis in unit for ci in cis]
+            planner.learn(unit, [{"config": ci, "elapsed_s": rng.choice([0.0, 1e-4, 0.01, 1.0, 5.0])}
+                                 for _, cis in unit for ci in cis], rng.random())
+        assert sorted(got) == [(r, ci) for r, cis in pending for ci in cis]
+
+
 def test_sigterm_then_resume(tmp_path):
     out = tmp_path / "s.jsonl"
     cmd = [sys.executable, "-m", "pfbench.cli", "sweep", "--model", "ob1", "--particles", "1000",
