@@ -14,6 +14,11 @@ kernel drops the lock when its holder dies (also on ``kill -9``), so a lock left
 is taken over without any stale-lock guesswork; a live holder makes the second command refuse
 with the holder's PID (the PID written into the lock file). The lock file is opened without
 following links and removed on release (:func:`exclusive_lock` says why that is race-free).
+
+A pool given ``threads`` (the sweep's) starts its workers with that thread budget in their
+environment (:func:`thread_env`): numba's thread pool, OpenMP and BLAS are sized to it before any
+of them is loaded, and :func:`free_cores` (the default thread count of a filter) never exceeds it
+in the worker, so W workers of ``cores / W`` threads never ask for more cores than there are.
 """
 from __future__ import annotations
 
@@ -112,20 +117,70 @@ def _runnable_elsewhere() -> int:
     return max(0, running - own)
 
 
+#: environment variable: the most threads a filter of this process may use (set by a pool given
+#: ``threads`` for its workers, :func:`thread_env`; a user may set it too)
+THREADS_ENV = "PFBENCH_THREADS"
+
+
+def thread_limit() -> int | None:
+    """The thread budget of this process (``$PFBENCH_THREADS``, an integer >= 1), None if unset or
+    not a positive integer."""
+    try:
+        n = int(os.environ.get(THREADS_ENV, ""))
+    except ValueError:
+        return None
+    return n if n >= 1 else None
+
+
+def thread_env(threads: int) -> dict:
+    """The environment that holds a process to ``threads`` threads: numba's pool
+    (``NUMBA_NUM_THREADS``, read when numba is imported), OpenMP and the BLAS libraries (read when
+    NumPy loads them) and pfbench's own budget (:data:`THREADS_ENV`, read by :func:`free_cores`)."""
+    n = str(max(1, int(threads)))
+    return {THREADS_ENV: n, "NUMBA_NUM_THREADS": n, "OMP_NUM_THREADS": n, "OPENBLAS_NUM_THREADS": n,
+            "MKL_NUM_THREADS": n}
+
+
+def worker_threads(workers: int) -> int:
+    """Threads each of ``workers`` processes may use so that together they use no more than the
+    cores free now (:func:`free_cores`): ``free_cores() // workers``, at least 1."""
+    return max(1, free_cores() // max(1, int(workers)))
+
+
+@contextlib.contextmanager
+def _environ(env: dict) -> Iterator[None]:
+    """``os.environ`` updated with ``env`` while the block runs (a child started meanwhile inherits it)."""
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def free_cores() -> int:
     """How many cores a parallel region of this process can have to itself now: :func:`usable_cores`
-    less the threads of other processes that are runnable, at least 1.
+    less the threads of other processes that are runnable, at least 1, and at most this process's
+    thread budget (:func:`thread_limit`, set in the workers of a pool given ``threads``).
 
     Why: a parallel kernel waits at a barrier for its slowest thread a few times per step; on a
     core shared with another busy process that thread is descheduled for a whole time slice, and a
     run with all cores' threads became many times slower than with one thread. Asking for no more
     threads than there are free cores keeps the default from collapsing on a busy machine."""
-    return max(1, usable_cores() - _runnable_elsewhere())
+    free = max(1, usable_cores() - _runnable_elsewhere())
+    limit = thread_limit()
+    return free if limit is None else min(free, limit)
 
 
 def _init_worker(parent_pid: int, shared: bool, model_files: list, initializer: Callable | None,
-                 initargs: tuple) -> None:
+                 initargs: tuple, threads: int | None = None) -> None:
     die_with_parent(parent_pid)
+    if threads is not None:  # a worker forked later than the pool's start: the budget all the same
+        os.environ.update(thread_env(threads))
     if shared:  # the pool's workers already use the cores: no compile helpers on top of them
         from .backends import compile_helper
 
@@ -139,7 +194,7 @@ def _init_worker(parent_pid: int, shared: bool, model_files: list, initializer: 
 
 
 def process_pool(max_workers: int, *, mp_context=None, initializer: Callable | None = None,
-                 initargs: tuple = ()):
+                 initargs: tuple = (), threads: int | None = None):
     """A ``concurrent.futures.ProcessPoolExecutor`` whose workers die with this process.
 
     Same arguments as the executor's; ``initializer(*initargs)`` runs after the worker has
@@ -148,13 +203,26 @@ def process_pool(max_workers: int, *, mp_context=None, initializer: Callable | N
     more start no compile helpers (:mod:`pfbench.backends.compile_helper`): the pool already
     spreads over the cores. Each worker loads the user model files this process has loaded
     (:func:`pfbench.models.loaded_files`), after the built-ins, as this process did.
+
+    ``threads``: each worker's thread budget (:func:`thread_env`; e.g. :func:`worker_threads`). The
+    workers are then started at once, inside that environment, so numba and the BLAS libraries
+    size their pools to it when the worker imports them (with ``spawn`` or ``forkserver`` all
+    workers start here; a ``fork`` worker started later gets :data:`THREADS_ENV` in its
+    initializer, while numba keeps the parent's pool size).
     """
     from concurrent.futures import ProcessPoolExecutor
 
     from .models import loaded_files
 
-    return ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context, initializer=_init_worker,
-                               initargs=(os.getpid(), max_workers > 1, loaded_files(), initializer, initargs))
+    args = (os.getpid(), max_workers > 1, loaded_files(), initializer, initargs, threads)
+    if threads is None:
+        return ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context, initializer=_init_worker,
+                                   initargs=args)
+    with _environ(thread_env(threads)):
+        pool = ProcessPoolExecutor(max_workers=max_workers, mp_context=mp_context, initializer=_init_worker,
+                                   initargs=args)
+        pool.submit(int)  # starts the workers now, in this environment (and while the caller prepares)
+    return pool
 
 
 @contextlib.contextmanager
@@ -273,4 +341,5 @@ def exclusive_lock(output, what: str, flag: str = "--out") -> Iterator[Path]:
         os.close(fd)  # releases the flock
 
 
-__all__ = ["process_pool", "die_with_parent", "exclusive_lock", "lock_path"]
+__all__ = ["process_pool", "die_with_parent", "exclusive_lock", "lock_path", "thread_env", "thread_limit",
+           "worker_threads"]

@@ -359,3 +359,31 @@ def test_startup_cold_is_empty_cache_warm_is_the_filled_one(monkeypatch, tmp_pat
     assert bad["cold_s"] is None and "boom" in bad["error"]
     assert res["targets"][1]["verdict"] == "not measured"
     assert "--steps 100 --particles 1000" in good["command"]
+
+
+def test_sweep_section_pairs_rounds_against_one_worker_and_judges_each_count(monkeypatch, tmp_path):
+    """Scripted command times, W = 1: 10, 12 s; W = 2: 6, 6 s; W = 4: 4, 3 s: speed-ups are
+    medians of per-round ratios (W = 2: 10/6 and 12/6, median 1.83; the medians alone give 11/6),
+    each W > 1 judged on speed-up / W, and W = 1 always run (the baseline). Then one real timed
+    sweep (a tiny grid, 2 workers) through `pfbench sweep`. Catches a ratio of medians, a missing
+    baseline, a verdict not computed from its value, and a section whose command does not run."""
+    from pfbench.bench import sweep_scaling as sw
+
+    script = {1: iter([10.0, 12.0]), 2: iter([6.0, 6.0]), 4: iter([4.0, 3.0])}
+    monkeypatch.setattr(sw, "run_seconds", lambda grid=sw.GRID: 0.5)
+    monkeypatch.setattr(sw, "timed_sweep", lambda runs, w, out, grid=sw.GRID: {
+        "command_s": next(script[w]), "sweep_s": 1.0, "units": 3, "first_unit_s": 0.5, "threads": 1})
+    res = sw.run_sweep_scaling(seconds=10, workers=[2, 4], rounds=2, progress=False)
+    assert res["runs"] == 20 and [r["workers"] for r in res["rows"]] == [1, 2, 4]
+    by = {r["workers"]: r for r in res["rows"]}
+    assert by[2]["speedup"] == pytest.approx((10 / 6 + 12 / 6) / 2)
+    assert by[4]["speedup"] == pytest.approx((10 / 4 + 12 / 3) / 2) and by[4]["efficiency"] == pytest.approx(3.25 / 4)
+    assert [t["verdict"] for t in res["targets"]] == ["meets", "meets"]
+    assert by[2]["speedup_rounds"] == [pytest.approx(10 / 6), pytest.approx(2.0)]
+    assert any("speed-up" in line for line in sw.text(res))
+
+    monkeypatch.undo()
+    grid = dict(sw.GRID, particles=(20,), filters=(1, 2), steps=20)
+    t = sw.timed_sweep(6, 2, tmp_path / "s.jsonl", grid)
+    assert t["command_s"] > t["sweep_s"] > 0 and t["units"] >= 1 and t["threads"] >= 1
+    assert t["first_unit_s"] is not None and 0 < t["first_unit_s"] < t["command_s"]

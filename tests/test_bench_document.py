@@ -181,7 +181,8 @@ def test_every_section_states_machine_date_sha_and_command(monkeypatch, tmp_path
     res = tmp_path / "results"
     for name, data in (("busy.json", busy_json(monkeypatch)), ("scaling.json", scaling_json(monkeypatch)),
                        ("startup.json", startup_json(monkeypatch)), ("bench.json", bench_json()),
-                       ("gpu.json", gpu_json()), ("pytest-benchmark.json", pytest_json())):
+                       ("gpu.json", gpu_json()), ("pytest-benchmark.json", pytest_json()),
+                       ("sweep.json", sweep_json())):
         _write(res, name, data)
         data = json.loads((res / name).read_text())
         kind = document.KINDS[document.kind_of(data)]
@@ -282,7 +283,7 @@ def test_cli_document_alone_runs_no_benchmark_and_is_reproducible(monkeypatch, t
     assert r.exit_code == 0, r.output
     page = (tmp_path / "docs" / "PERFORMANCE.md").read_text()
     assert page == document.render("results/bench", "docs/performance_notes.md")
-    assert "not measured: bench, bench_startup, bench_scaling, bench_gpu, pytest_benchmark" in r.output
+    assert "not measured: bench, bench_startup, bench_scaling, bench_sweep, bench_gpu, pytest_benchmark" in r.output
     assert CliRunner().invoke(main, ["bench", "--document"]).exit_code == 0
     assert (tmp_path / "docs" / "PERFORMANCE.md").read_text() == page
 
@@ -300,3 +301,28 @@ def test_cli_document_without_notes_is_an_error(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     r = CliRunner().invoke(main, ["bench", "--document"])
     assert r.exit_code == 2 and "docs/performance_notes.md" in r.stderr and "missing" in r.stderr
+
+
+
+def sweep_json():
+    """A ``bench_sweep`` result: W = 2's stored speed-up (the median of per-round ratios) is 1.5x,
+    where the ratio of the median command times is 10 / 8 = 1.25x."""
+    rows = [{"workers": 1, "command_s": [10.0, 12.0, 9.0], "command_median_s": 10.0, "speedup": 1.0,
+             "speedup_rounds": [1.0, 1.0], "efficiency": 1.0},
+            {"workers": 2, "command_s": [8.0, 6.0, 9.0], "command_median_s": 8.0, "speedup": 1.5,
+             "speedup_rounds": [1.0, 2.0], "efficiency": 0.75}]
+    from pfbench.bench.report import check
+
+    target = check("sweep_efficiency", 0.75, "sweep on 2 workers: speed-up / 2")
+    return provenance(kind="bench_sweep", grid={"model": "ob1", "method": "multipdf", "particles": [100],
+                                                "filters": [1], "steps": 10},
+                      seconds_asked=60.0, run_s=0.5, runs=4, tasks=4, rounds=3, cores=2, rows=rows, targets=[target])
+
+
+def test_sweep_table_shows_the_paired_speedup(tmp_path):
+    """The speed-up column is the median of the per-round ratios the sweep bench stored, not the
+    ratio of the median times; speed-up / W follows it. Catches a page that recomputes the speed-up
+    from the medians or shows another row's value."""
+    _write(tmp_path / "r", "sweep.json", sweep_json())
+    sec = _section(document.render(tmp_path / "r", _notes(tmp_path)), "A sweep on 1 and on W workers")
+    assert "| 2 | 8.00 | 1.50x | 1.00x-2.00x | 0.750 |" in sec

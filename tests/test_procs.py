@@ -127,3 +127,32 @@ def test_free_cores_leaves_out_the_cores_other_processes_keep_busy():
         for p in procs:
             p.kill()
             p.wait()
+
+
+def test_a_thread_budget_caps_free_cores_and_reaches_a_pools_workers(monkeypatch):
+    """A pool given ``threads`` (the sweep's) starts its workers with numba's pool, BLAS and the
+    filters' default thread count held to it. Catches workers that each take every free core
+    (W workers x cores threads) and a budget set too late for numba to see it."""
+    from pfbench.procs import THREADS_ENV, free_cores, thread_env, worker_pool
+
+    monkeypatch.setenv(THREADS_ENV, "1")
+    assert free_cores() == 1
+    monkeypatch.setenv(THREADS_ENV, "junk")     # not a count: no budget
+    assert free_cores() >= 1
+    monkeypatch.delenv(THREADS_ENV)
+    import multiprocessing as mp
+
+    with worker_pool(2, mp_context=mp.get_context("spawn"), threads=1) as pool:
+        seen = pool.submit(_thread_view).result()
+    assert seen == ({k: "1" for k in thread_env(1)}, 1, 1)
+    assert THREADS_ENV not in __import__("os").environ      # the parent's environment is restored
+
+
+def _thread_view():
+    import os
+
+    import numba
+
+    from pfbench.procs import free_cores, thread_env
+
+    return {k: os.environ.get(k) for k in thread_env(1)}, numba.config.NUMBA_NUM_THREADS, free_cores()

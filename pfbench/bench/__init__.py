@@ -29,9 +29,12 @@ Sections (each writes its JSON into the directory of ``--out``, default ``result
   particle-step for N_p = 10^2 ... 10^7.
 * **busy** (``busy.json``, :mod:`pfbench.bench.busy`): the default thread count against one
   thread with 2 x (cores) other processes spinning.
+* **sweep** (``sweep.json``, :mod:`pfbench.bench.sweep_scaling`): a sweep of about a minute on one
+  worker (``--sweep-seconds``; 10 s with ``--quick``) on 1, 2 and all cores' workers
+  (``--sweep-workers``): wall times and speed-ups.
 
 ``pfbench bench`` runs main + startup (``--quick``: main only, small), ``--scaling`` and/or
-``--startup`` / ``--busy`` run only those sections, ``--all`` runs all four. Compilation is excluded from
+``--startup`` / ``--busy`` / ``--sweep`` run only those sections, ``--all`` runs all five. Compilation is excluded from
 every timing but the startup section's: each configuration runs once untimed first.
 
 ``--document`` (:mod:`pfbench.bench.document`) then renders docs/PERFORMANCE.md from every JSON in
@@ -342,7 +345,7 @@ def main_text(res: dict) -> list[str]:
 def _section_paths(out_path) -> dict:
     d = Path(out_path).parent
     return {"bench": Path(out_path), "startup": d / "startup.json", "scaling": d / "scaling.json",
-            "scaling_png": d / "scaling.png", "busy": d / "busy.json"}
+            "scaling_png": d / "scaling.png", "busy": d / "busy.json", "sweep": d / "sweep.json"}
 
 
 @click.command()
@@ -355,7 +358,13 @@ def _section_paths(out_path) -> dict:
               "startup.json beside --out.")
 @click.option("--busy", is_flag=True, help="Only (or also) the default thread count vs 1 thread with "
               "2 x (cores) busy processes: busy.json beside --out.")
-@click.option("--all", "run_all", is_flag=True, help="Main, startup, scaling and busy sections.")
+@click.option("--sweep", "sweep", is_flag=True, help="Only (or also) a sweep's speed-up on 1, 2 and all cores' "
+              "workers: sweep.json beside --out.")
+@click.option("--sweep-workers", default=None, metavar="W[,W...]",
+              help="Worker counts of --sweep (default 1, 2 and the usable cores; 1 is always run).")
+@click.option("--sweep-seconds", type=click.FloatRange(min=1.0), default=None,
+              help="Size of the --sweep sweep in seconds on 1 worker (default 60; 10 with --quick).")
+@click.option("--all", "run_all", is_flag=True, help="Main, startup, scaling, busy and sweep sections.")
 @click.option("--cold-repeats", type=click.IntRange(1, 20), default=1, show_default=True,
               help="Cold starts per method (each on a fresh, empty cache; expensive).")
 @click.option("--no-particles", is_flag=True, help="Skip the `particles` library comparison.")
@@ -365,17 +374,26 @@ def _section_paths(out_path) -> dict:
 @click.option("--document", is_flag=True, help="Then regenerate docs/PERFORMANCE.md from every JSON beside "
               "--out and docs/performance_notes.md; alone, run no benchmark (the page from existing results).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
-def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_particles, no_c, out_path, document,
-          as_json):
+def bench(repeats, quick, scaling, startup, busy, sweep, sweep_workers, sweep_seconds, run_all, cold_repeats,
+          no_particles, no_c, out_path, document, as_json):
     """Time the engine against the floor, the C reference and the `particles` library; cold/warm
     start per method (--startup); cost vs N_p (--scaling); regenerate docs/PERFORMANCE.md (--document)."""
     from ..io import to_json, write_json
     from ..resources import check_writable, path_error
 
+    if sweep_workers is not None:
+        from ..options import comma_list, typed
+
+        sweep_workers = [typed(w, int, "--sweep-workers") for w in comma_list(sweep_workers, "--sweep-workers")]
+        if min(sweep_workers) < 1:
+            from ..errors import InputError
+
+            raise InputError(f"--sweep-workers must be integers >= 1, got {min(sweep_workers)}")
     if run_all:
-        sections = ["bench", "startup", "scaling", "busy"]
-    elif scaling or startup or busy:
-        sections = [s for s, on in (("startup", startup), ("scaling", scaling), ("busy", busy)) if on]
+        sections = ["bench", "startup", "scaling", "busy", "sweep"]
+    elif scaling or startup or busy or sweep:
+        sections = [s for s, on in (("startup", startup), ("scaling", scaling), ("busy", busy), ("sweep", sweep))
+                    if on]
     elif document and not quick:  # the page alone, from the results already there
         sections = []
     else:
@@ -434,6 +452,13 @@ def bench(repeats, quick, scaling, startup, busy, run_all, cold_repeats, no_part
         save("busy", res)
         lines += ["", "default threads on a busy machine (Ob1 bootstrap, M = 200, medians of 3):", *busy_text(res),
                   f"-> {paths['busy']}"]
+    if "sweep" in sections:
+        from .sweep_scaling import QUICK_SECONDS, SECONDS, run_sweep_scaling, text as sweep_text
+
+        seconds = sweep_seconds or (QUICK_SECONDS if quick else SECONDS)
+        res = run_sweep_scaling(seconds=seconds, workers=sweep_workers, rounds=max(1, min(repeats, 3)))
+        save("sweep", res)
+        lines += ["", "a sweep on 1 worker and on several:", *sweep_text(res), f"-> {paths['sweep']}"]
     if document:
         res = doc.write(results_dir=paths["bench"].parent)
         missing = [k for k, files in res["kinds"].items() if not files]

@@ -334,6 +334,27 @@ def render_busy(d: dict) -> list[str]:
     return out
 
 
+def render_sweep(d: dict) -> list[str]:
+    """``sweep.json`` (``bench_sweep``, :func:`pfbench.bench.sweep_scaling.run_sweep_scaling`): one
+    sweep timed as a ``pfbench sweep`` command on 1 and on W workers."""
+    g = d["grid"]
+    out = [provenance_line(d), "",
+           f"{g.get('model', '?')} {g.get('method', '?')}, N_p {g.get('particles')} x N_f {g.get('filters')}, "
+           f"M = {g.get('steps')}: {d['runs']} runs = {d['tasks']} tasks, about {num(d.get('seconds_asked'))} s on "
+           f"1 worker, {d.get('cores', '?')} usable cores; medians over {d.get('rounds', '?')} round(s), the speed-up "
+           "the median of the per-round ratios of the command's wall time (target: speed-up / W >= 0.8):", ""]
+    rows = [[r["workers"], num(r["command_median_s"]), ratio(r.get("speedup")), span_pair(r.get("speedup_rounds")),
+             num(r.get("efficiency"))] for r in d["rows"]]
+    out += table(["workers", "command, s", "speed-up", "rounds", "speed-up / W"], rows)
+    out += _targets(d.get("targets"))
+    return out
+
+
+def span_pair(pair) -> str:
+    """A (low, high) ratio range, or ``-``."""
+    return "-" if not pair else f"{ratio(pair[0])}-{ratio(pair[1])}"
+
+
 def _gpu_name(d: dict) -> str:
     g = d.get("gpu") if isinstance(d.get("gpu"), dict) else {}
     bits = [g.get("gpu") or "GPU not recorded"]
@@ -430,6 +451,7 @@ KINDS = {k.name: k for k in (
     Kind("bench_startup", "Cold and warm start per method", "pfbench bench --startup", render_startup),
     Kind("bench_scaling", "Cost per particle-step against N_p", "pfbench bench --scaling", render_scaling),
     Kind("bench_busy", "Default thread count on a busy machine", "pfbench bench --busy", render_busy),
+    Kind("bench_sweep", "A sweep on 1 and on W workers", "pfbench bench --sweep", render_sweep),
     Kind("bench_gpu", "GPU, `--backend cupy`", "OUT=results/bench bash scripts/gpu_check.sh", render_gpu,
          "on a machine with a CUDA GPU and CuPy"),
     Kind("pytest_benchmark", "pytest-benchmark suite", PYTEST_COMMAND, render_pytest),

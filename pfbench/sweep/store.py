@@ -23,11 +23,13 @@ import json
 import os
 import zlib
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from ..errors import DataError, InputError
 from .core import spec_hash
+
+if TYPE_CHECKING:  # pandas loads when a frame is made: a sweep worker, which only appends, never needs it
+    import pandas as pd
 
 MAGIC = "pfbench_sweep_store"
 FORMAT = 1
@@ -191,6 +193,8 @@ class Store:
         (:func:`~pfbench.sweep.core.model_label`, e.g. ``ob3:v4``), ``estimate`` the one the task
         ran with (:func:`~pfbench.sweep.core.estimate_for`: ``pre`` for a store written before the
         option existed)."""
+        import pandas as pd
+
         from .core import estimate_for, model_label
 
         cols = ["config", "run", "method", "n_particles", "n_filters", "armse", "elapsed_s"]

@@ -1,11 +1,15 @@
 """Per-configuration summaries of a sweep and the aRMSE-vs-N_p plot ([MultiPDF] Figs. 3-11)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
 
 from ..methods import Method
 from ..metrics import mean_interval
+
+if TYPE_CHECKING:  # loaded by the functions that make frames (a sweep worker needs none)
+    import pandas as pd
 
 #: legend labels; other methods show their name
 _LABEL = {"bootstrap": "BF", "mpf": "MPF"}
@@ -26,6 +30,8 @@ def summarize_frame(frame: pd.DataFrame, spec: dict | None = None) -> pd.DataFra
     full model spec (:func:`~pfbench.sweep.core.model_label`: ``ob3:v4``, not ``ob3``);
     ``estimate`` is the one the configuration ran with (:func:`~pfbench.sweep.core.estimate_for`;
     ``pre`` without a spec or for an older store)."""
+    import pandas as pd
+
     from .core import estimate_for, model_label
 
     rows = []

@@ -42,27 +42,116 @@ def test_run_multipdf_equals_run_filter():
 
 
 def test_one_vs_two_workers_identical(tmp_path):
+    """Catches: numbers that depend on the worker count or on how tasks are batched into units, a
+    task written twice, tiny tasks not batched, and workers whose numba pool is not held to their
+    share of the cores."""
+    from pfbench.procs import usable_cores
+
     spec = _spec()
     run_sweep(spec, tmp_path / "a.jsonl", workers=1, progress=False)
     run_sweep(spec, tmp_path / "b.parquet", workers=2, progress=False)
     a, b = _frame(tmp_path / "a.jsonl"), _frame(tmp_path / "b.parquet")
     assert len(a) == len(spec["configs"]) * spec["runs"] == 24
     pd.testing.assert_frame_equal(a, b)
+    chunks = Store.read(journal_path(tmp_path / "b.parquet")).chunks
+    assert sum(c["n"] for c in chunks) == 24                      # every task once
+    assert max(len(c["runs"]) for c in chunks) > 1                # ~1 ms tasks: several runs per unit
+    assert 1 <= min(c["threads"] for c in chunks) <= max(c["threads"] for c in chunks) <= max(1, usable_cores() // 2)
 
 
-def test_resume_after_interruption_gives_same_store(tmp_path):
+def test_resume_after_interruption_gives_same_store(tmp_path, monkeypatch):
+    import pfbench.sweep.runner as runner
+
+    monkeypatch.setattr(runner, "MIN_UNIT_S", 0.0)  # units of a run or two: the sweep is tiny
     spec = _spec()
     run_sweep(spec, tmp_path / "full.jsonl", workers=1, progress=False)
     part = tmp_path / "part.jsonl"
     run_sweep(spec, part, workers=1, progress=False, max_units=2)  # "interrupted" after 2 units
-    assert 0 < len(Store.read(part).records) < 24
+    n = len(Store.read(part).records)
+    assert 0 < n < 24 and n % 4 == 0                                # whole runs: 4 configurations
     with open(part, "a") as fh:                                     # torn write of a crash
         fh.write('{"crc": 1, "d": {"key": "0:5", "arm')
     rep = run_sweep(spec, part, workers=1, progress=False)
-    assert rep.done_before == 8 and rep.done_now == 16
+    assert rep.done_before == n and rep.done_now == 24 - n
     pd.testing.assert_frame_equal(_frame(part), _frame(tmp_path / "full.jsonl"))
     # re-running a complete sweep does nothing
     assert run_sweep(spec, part, workers=1, progress=False).done_now == 0
+
+
+def test_batched_resume_reruns_nothing_written(tmp_path):
+    """A sweep stopped after two batched units (two workers) resumes with the rest only: every
+    task in the journal once, the store equal to an uninterrupted one. Catches a resume that
+    reruns written tasks or loses more than the units in flight."""
+    spec = _spec(runs=12)
+    part = tmp_path / "part.jsonl"
+    run_sweep(spec, part, workers=2, progress=False, max_units=2)
+    first = Store.read(part)
+    assert 0 < len(first.records) < 48 and sum(c["n"] for c in first.chunks) == len(first.records)
+    rep = run_sweep(spec, part, workers=1, progress=False)
+    assert rep.done_before == len(first.records) and rep.done_now == 48 - len(first.records)
+    keys = [json.loads(ln)["d"]["key"] for ln in part.read_text().splitlines()[1:] if '"d":' in ln]
+    assert len(keys) == len(set(keys)) == 48
+    run_sweep(spec, tmp_path / "full.jsonl", workers=1, progress=False)
+    pd.testing.assert_frame_equal(_frame(part), _frame(tmp_path / "full.jsonl"))
+
+
+def _planner(configs, runs, workers, seconds=None):
+    from pfbench.sweep.runner import Planner
+
+    spec = {"configs": configs, "runs": runs}
+    recs = [] if seconds is None else [{"config": ci, "elapsed_s": s} for ci, s in enumerate(seconds)]
+    return Planner(spec, [(r, list(range(len(configs)))) for r in range(runs)], workers, recs)
+
+
+def _drain(planner):
+    units = []
+    while (u := planner.next_unit()) is not None:
+        units.append(u)
+    return units
+
+
+def test_planner_batches_tiny_tasks_splits_long_runs_and_hands_out_each_task_once():
+    """Catches: one unit per run whatever its size (tiny tasks: the per-unit costs dominate; long
+    runs: a ragged tail), units that grow towards the end, and a task handed out twice or never."""
+    cfgs = [["bootstrap", 100, 1], ["bootstrap", 1000, 1], ["multipdf", 1000, 2]]
+    tiny = _drain(_planner(cfgs, 400, 2, seconds=[0.001, 0.002, 0.002]))   # 5 ms a run
+    big = _drain(_planner(cfgs, 4, 8, seconds=[0.5, 3.0, 3.0]))            # 6.5 s a run
+    for units, runs in ((tiny, 400), (big, 4)):
+        tasks = [(r, ci) for u in units for r, cis in u for ci in cis]
+        assert sorted(tasks) == [(r, ci) for r in range(runs) for ci in range(3)]
+    assert all(len(u) >= 0.2 / 0.005 for u in tiny[:-1])          # >= MIN_UNIT_S of whole runs
+    assert len(tiny) < 400 / 20
+    assert all(len(u) == 1 and len(u[0][1]) < 3 for u in big)     # the runs are split ...
+    assert big[0][0][1] in ([1], [2])                             # ... the largest tasks first
+    sizes = [sum(len(cis) for _, cis in u) for u in tiny]
+    assert sizes[0] >= sizes[-1]
+    # before a time is known a unit is at most one run
+    first = _planner(cfgs, 10, 2).next_unit()
+    assert len(first) == 1 and first[0][1] == [0, 1, 2]
+
+
+def test_planner_hands_out_every_pending_task_once_whatever_the_times(monkeypatch):
+    """Random grids, partly finished runs, worker counts and measured times (zero included, and no
+    least unit size): every pending task exactly once, no empty group. Catches a split run that
+    leaves an empty group behind or drops its last configuration."""
+    import random
+
+    import pfbench.sweep.runner as runner
+
+    rng = random.Random(1)
+    for _ in range(200):
+        monkeypatch.setattr(runner, "MIN_UNIT_S", rng.choice([0.0, 0.2]))
+        nc, runs = rng.randint(1, 6), rng.randint(1, 30)
+        cfgs = [["bootstrap", rng.choice([10, 100, 1000, 10000]), 1] for _ in range(nc)]
+        pending = [(r, sorted(rng.sample(range(nc), rng.randint(1, nc)))) for r in range(runs)]
+        planner = runner.Planner({"configs": cfgs, "runs": runs}, pending, rng.randint(1, 20))
+        got = []
+        while (unit := planner.next_unit()) is not None:
+            assert unit and all(cis for _, cis in unit)
+            got += [(r, ci) for r, cis in unit for ci in cis]
+            planner.learn(unit, [{"config": ci, "elapsed_s": rng.choice([0.0, 1e-4, 0.01, 1.0, 5.0])}
+                                 for _, cis in unit for ci in cis], rng.random())
+        assert sorted(got) == [(r, ci) for r, cis in pending for ci in cis]
 
 
 def test_sigterm_then_resume(tmp_path):
@@ -118,6 +207,11 @@ def test_dask_localcluster_matches_local(tmp_path):
     run_sweep(spec, tmp_path / "l.jsonl", workers=1, progress=False)
     run_sweep(spec, tmp_path / "d.jsonl", workers=2, executor="dask", progress=False)
     pd.testing.assert_frame_equal(_frame(tmp_path / "l.jsonl"), _frame(tmp_path / "d.jsonl"))
+    from pfbench.procs import usable_cores
+
+    chunks = Store.read(tmp_path / "d.jsonl").chunks   # the same batching, workers held to their share
+    assert sum(c["n"] for c in chunks) == 16 and max(len(c["runs"]) for c in chunks) > 1
+    assert 1 <= min(c["threads"] for c in chunks) <= max(c["threads"] for c in chunks) <= max(1, usable_cores() // 2)
 
 
 def test_summarize_cli(tmp_path):
