@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The engine's speed figures on one quiet machine, in one call (about 9 minutes), from the
+# The engine's speed figures on one quiet machine, in one call (about 7 minutes), from the
 # repository root:  OUT=/some/dir bash scripts/engine_check.sh
 # "2 cores" sections run under `taskset -c 0,1`; the others use every core. JSON goes to $OUT
 # (startup.json, busy.json, sweep.json, sweep16.json, e2e.json), the log to stdout. Every section is
@@ -9,7 +9,7 @@
 #      without the constant shape-error message
 #   2. end to end, 12 steps at N_p = 10^6, 1 vs 2 threads on 2 cores
 #   3. default threads vs 1 thread with 2 x (cores) busy processes, 2 cores
-#   4. a one-minute sweep on 1 and 2 workers (2 cores), then on 1, 2 and 16 workers
+#   4. a 45-second sweep on 1 and 2 workers (2 cores), then on 1, 2 and 16 workers
 set -u
 OUT=${OUT:-$PWD/engine-out}
 mkdir -p "$OUT"
@@ -47,7 +47,7 @@ cold() {  # label PYTHONPATH helper(0/1) method model
   $PY -c "print('cold', '$1', '$4', '$5', round($e - $s, 2), 's')"
 }
 log "1. cold first runs, 2 cores (alternating)"
-for round in 1 2 3; do
+for round in 1 2; do
   cold helper "$PWD" 1 bootstrap ob1
   cold one-process "$PWD" 0 bootstrap ob1
   cold inline /tmp/inline 0 bootstrap ob1
@@ -69,9 +69,9 @@ log "3. busy machine, 2 cores"
 timeout 150 $TWO $PY -m pfbench bench --busy --out "$OUT/bench.json" | tail -8
 
 log "4. sweep, 2 cores: 1 and 2 workers"
-timeout 200 $TWO $PY -m pfbench bench --sweep --sweep-workers 1,2 --sweep-seconds 60 --out "$OUT/bench.json" | tail -8
+timeout 200 $TWO $PY -m pfbench bench --sweep --sweep-workers 1,2 --sweep-seconds 45 --repeats 1 --out "$OUT/bench.json" | tail -8
 log "4. sweep, all cores: 1, 2 and 16 workers"
 mkdir -p "$OUT/all"
-timeout 150 $PY -m pfbench bench --sweep --sweep-workers 1,2,16 --sweep-seconds 60 --out "$OUT/all/bench.json" | tail -8
+timeout 150 $PY -m pfbench bench --sweep --sweep-workers 1,2,16 --sweep-seconds 45 --repeats 1 --out "$OUT/all/bench.json" | tail -8
 cp "$OUT/all/sweep.json" "$OUT/sweep16.json" 2>/dev/null
 log "done"
