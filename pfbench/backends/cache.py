@@ -1,28 +1,18 @@
 """Compiled code that is never stale: every numba disk cache entry of pfbench is keyed on the whole
 package source.
 
-numba's own cache keys a compiled function on *its* source file only, so editing a jitted helper
-in another module (which the cached function inlined) leaves the old machine code in use. pfbench
-therefore installs a numba cache locator for every function defined in the ``pfbench`` package (a
-kernel template run for a model, :func:`pfbench.backends.kernels.build`, in a directory of its
-module's own) and for model files a kernel compiles (:func:`track_file`), whose source stamp is
-:func:`package_fingerprint` combined with the hash of the function's own file: any edit of the
-package or of the model's file makes numba recompile. The entries live under
-``cache_root() / "numba"``, apart from numba's own cache.
+numba keys a compiled function on its own source file only, so an edit of a helper it inlined would
+leave old machine code in use. :func:`install` puts first a cache locator for pfbench's functions and
+the model files a kernel compiles (:func:`track_file`) whose source stamp is
+:func:`package_fingerprint` plus the function's file hash, one directory per module (a template runs
+as one module per model, :func:`pfbench.backends.kernels.build`), under ``cache_root() / "numba"``.
 
-Damaged entries heal themselves. Every function compiled through :func:`njit` gets a
-:class:`HealingFunctionCache` (on that dispatcher only). An index (``.nbi``) or data (``.nbc``)
-file that cannot be read, unpickled or rebuilt is removed, reported by one
-:class:`CacheRepairWarning` line naming the file, and the function is recompiled and saved again.
-The data file is written before the index entry that points to it and holds the entry's key, so a
-writer killed (or racing another process) between the two leaves an entry that is recompiled,
-never one that loads the wrong code.
+Damaged entries heal themselves (:class:`HealingFunctionCache`, for :func:`njit` functions): an index
+or data file that cannot be read, unpickled or rebuilt is removed, reported by one
+:class:`CacheRepairWarning` line and recompiled. The data file is written before its index entry and
+holds its key, so a writer killed or racing between the two leaves a miss, never wrong code.
 
-:func:`install` runs when ``pfbench`` is imported, before any pfbench module defines a cached
-function. It also points numba's CPU overload of the array-assignment shape error at numba's
-target-neutral one (the same ``ValueError`` with a constant message): the CPU one formats both
-shapes, unicode code that costs seconds of every cold compile for a branch that only runs on a
-bug. The compiled arithmetic, and so every result, is unchanged.
+:func:`install` runs when ``pfbench`` is imported, before any pfbench module defines a cached function.
 """
 from __future__ import annotations
 
@@ -42,13 +32,9 @@ _TRACKED: set[str] = set()
 
 
 def cache_root() -> Path:
-    """Where pfbench keeps compiled code: ``$PFBENCH_CACHE_DIR``; else, when pfbench runs from a
-    virtual environment it can write to, ``<environment>/var/cache/pfbench``; else
-    ``~/.cache/pfbench``.
-
-    One cache per installation: ``make all`` (which precompiles, see :mod:`pfbench.precompile`),
-    the tests and every later command of the activated environment share it, and removing the
-    environment removes it (entries are keyed on the package source, so stale ones never load).
+    """Where pfbench keeps compiled code: ``$PFBENCH_CACHE_DIR``; else ``<environment>/var/cache/pfbench``
+    from a writable virtual environment; else ``~/.cache/pfbench``. One cache per installation, shared
+    by ``make all`` (:mod:`pfbench.precompile`), the tests and later commands, removed with the environment.
     """
     root = os.environ.get("PFBENCH_CACHE_DIR")
     if root:
@@ -62,9 +48,8 @@ _USABLE: set[Path] = set()
 
 
 def check_cache_dir() -> Path:
-    """:func:`cache_root`, created and probed once per process and directory: a directory that
-    cannot be written is a one-line :class:`~pfbench.errors.DataError` naming it and
-    ``PFBENCH_CACHE_DIR`` (not the numba traceback or write error of the first kernel file)."""
+    """:func:`cache_root`, created and probed once per process: an unwritable one is a one-line
+    :class:`~pfbench.errors.DataError` naming it and ``PFBENCH_CACHE_DIR``, not a numba traceback."""
     root = cache_root()
     if root not in _USABLE:
         from ..resources import check_writable
@@ -75,10 +60,8 @@ def check_cache_dir() -> Path:
 
 
 def package_fingerprint() -> str:
-    """Hash of every ``.py`` file of the installed package plus the Python, numba and NumPy versions.
-
-    The recipes (``pfbench/reproductions``: a link in a checkout, a folder in the wheel) are left
-    out the same way in both; :func:`pfbench.recipes.code_fingerprint` adds a recipe's own folder."""
+    """Hash of every ``.py`` file of the package plus the Python, numba and NumPy versions; the recipes
+    (``pfbench/reproductions``) are left out (:func:`pfbench.recipes.code_fingerprint` adds one's own)."""
     global _FINGERPRINT
     with _LOCK:
         if _FINGERPRINT is None:
@@ -173,12 +156,9 @@ _REPAIRED: set[str] = set()
 
 
 def warn_repaired(path, what: str, exc: BaseException | str | None = None) -> None:
-    """Report a repaired cache file once per process, as one warning line that names the file.
-
-    The warning is attributed to ``path`` itself at line 0, so Python's default format prints one
-    line ``<path>:0: CacheRepairWarning: damaged <what> (<reason>): removed and rebuilt`` and no
-    source line; ``-W ignore::pfbench.backends.cache.CacheRepairWarning`` silences it.
-    """
+    """Report a repaired cache file once per process, as one line attributed to ``path`` at line 0
+    (``<path>:0: CacheRepairWarning: damaged <what> (<reason>): removed and rebuilt``, no source line);
+    ``-W ignore::pfbench.backends.cache.CacheRepairWarning`` silences it."""
     reason = f" ({exc})" if isinstance(exc, str) else ""
     if isinstance(exc, BaseException):
         detail = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
@@ -218,8 +198,7 @@ def _healing_cache_class():
     from numba.core import caching
 
     class HealingIndexDataCacheFile(caching.IndexDataCacheFile):
-        """numba's index + data files, with damaged files removed instead of raised, the data file
-        written before the index entry, and the entry's key stored in the data file."""
+        """numba's index + data files: damaged files removed, data written first, holding its key."""
 
         def _discard(self, path, exc) -> None:
             remove_path(path)
@@ -281,9 +260,8 @@ def _healing_cache_class():
             super()._save_index(overloads)
 
     class HealingFunctionCache(caching.FunctionCache):
-        """numba's per-function disk cache with :class:`HealingIndexDataCacheFile` and a rebuild
-        failure treated as a damaged entry. A cache directory that cannot be written is reported
-        once and the function runs from memory."""
+        """numba's per-function disk cache with :class:`HealingIndexDataCacheFile`, a failed rebuild
+        treated as damage, and an unwritable directory reported once (the function runs from memory)."""
 
         def __init__(self, py_func):
             super().__init__(py_func)
@@ -307,8 +285,7 @@ def _healing_cache_class():
                 return None
 
         def has_entry(self, sig, target_context) -> bool:
-            """Whether the index holds an entry for ``sig`` (its data is checked when it is
-            loaded: a damaged entry is then recompiled)."""
+            """Whether the index holds an entry for ``sig`` (its data is checked when loaded)."""
             return bool(self._enabled) and \
                 self._index_key(sig, target_context.codegen()) in self._cache_file._load_index()
 
@@ -329,7 +306,7 @@ _INSTALLED = False
 
 def install() -> None:
     """Put the package-keyed locator first in numba's list, use the constant-message shape error
-    (see the module docstring), keep conditional moves in loops (:mod:`pfbench.backends.codegen`)
+    (:func:`constant_shape_error`), keep conditional moves in loops (:mod:`pfbench.backends.codegen`)
     and defer interrupts during compiles (:mod:`pfbench.backends.interrupts`) (idempotent)."""
     global _INSTALLED
     if _INSTALLED:
@@ -345,15 +322,14 @@ def install() -> None:
     from .interrupts import defer_during_compiles
 
     keep_selects()
-
     defer_during_compiles()
     _INSTALLED = True
 
 
 def constant_shape_error() -> bool:
-    """Make numba's CPU target raise array-assignment shape mismatches with the constant message
-    of its generic target (see the module docstring). Returns whether the CPU overload now uses
-    it; False (nothing changed) when this numba version lays the overload out differently."""
+    """Make numba's CPU target raise array-assignment shape mismatches with its generic target's
+    constant message: the CPU one formats both shapes, unicode code compiled into every cold kernel
+    for a branch only a bug takes. Returns whether it did (False: another numba layout, no change)."""
     try:
         from numba.core.typing.templates import builtin_registry
         from numba.np import arrayobj
@@ -372,9 +348,8 @@ def constant_shape_error() -> bool:
 
 
 def njit(*args, **options):
-    """``numba.njit(cache=True, ...)`` with the package-keyed cache: the one way pfbench compiles a
-    disk-cached function. Use as ``@njit`` or ``@njit(nogil=True)``; ``cache=False`` is allowed
-    for code that cannot be reloaded (models defined in notebooks)."""
+    """``numba.njit(cache=True, ...)`` with the package-keyed cache and no C-callable wrapper, the one
+    way pfbench compiles; ``cache=False`` for code that cannot be reloaded (models in notebooks)."""
     import numba
 
     install()
@@ -387,8 +362,7 @@ def njit(*args, **options):
 
 
 def _healing(dispatcher, cache: bool):
-    """Enable the disk cache of a dispatcher with the self-healing class of
-    :func:`_healing_cache_class` (what ``enable_caching`` does with numba's own class)."""
+    """Enable a dispatcher's disk cache with :func:`_healing_cache_class` (numba's ``enable_caching``)."""
     if cache and hasattr(dispatcher, "_cache") and hasattr(dispatcher, "py_func"):
         dispatcher._cache = _healing_cache_class()(dispatcher.py_func)
     return dispatcher

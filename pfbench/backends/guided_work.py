@@ -1,10 +1,8 @@
 """The numba guided kernel's arguments as named groups (:mod:`pfbench.backends.numba_guided`).
 
-A whole run (``run_proposal``/``run_optimal``) takes the parameters, the generator, ``y``, ``u``,
-the particles and log-weights and two groups, :class:`Outputs` and :class:`Settings`; the field
-order is written once, here. numba types a named tuple by its fields, so the driver's argument
-types are ``numba.typeof`` of the objects the host passes. The model's calls by address keep the
-model's own argument order (``_model_calls`` of :mod:`pfbench.backends.numba_backend`).
+A whole run takes the parameters, the generator, ``y``, ``u``, the particles and log-weights,
+:class:`Outputs` and :class:`Settings`; as in :mod:`pfbench.backends.particle_work`, the argument
+types are ``numba.typeof`` of the objects the host passes.
 """
 from __future__ import annotations
 
@@ -25,10 +23,9 @@ class Outputs(NamedTuple):
 
 
 class Settings(NamedTuple):
-    """A run's constants: standard normals per particle for the proposal; the
-    :class:`~pfbench.resampling.Scheme` code; the resampling threshold (a particle count); the
-    native entry addresses of the model's proposal and of its weight (the proposal's weight or the
-    predictive likelihood) (:mod:`pfbench.backends.native_call`; 0 until the host has them)."""
+    """A run's constants: normals per particle for the proposal; the :class:`~pfbench.resampling.Scheme`
+    code; the resampling threshold (a particle count); the entry addresses of the model's proposal and
+    of its weight or predictive likelihood (0 until the host has them)."""
 
     n_noise: int
     scheme: int

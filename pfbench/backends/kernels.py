@@ -1,25 +1,19 @@
 """How a compiled filter kernel is built: the kernel families as data and one :func:`build`.
 
-A kernel family (particle, MPF, guided) is a template module of this package whose compiled
-functions call the model through module globals. numba's disk cache cannot hold a function that
-receives the model's functions as arguments or closure variables, so :func:`build` imports the
-template once per (model class, scheme, tile layout) as a module of its own, under a name that
-carries the model and a hash of the package and the model's source, with the model's compiled
-functions bound to those globals while the module runs. The template reads them at its top::
+A family (particle, MPF, guided) is a template module of this package whose compiled functions call
+the model through module globals, as numba's disk cache cannot hold a function that receives the
+model's functions as arguments or closures. :func:`build` runs the template once per (model class,
+scheme, tile layout) as a module of its own, named for the model and a hash of the package and the
+model's source, with the model's functions bound while it runs; the template reads them at its top::
 
     _b = binding()                       # the build in progress (stubs on a plain import)
     _transition = _b.model("transition")
     _resample = _b.resample               # the scheme's kernel, or the run-time choice
 
-No source text is generated or edited: the module is the template file itself, executed in a
-namespace of its own. Its functions are ordinary cached numba functions; the cache keeps them in
-a directory per module name (:mod:`pfbench.backends.cache`), so a second process loads machine
-code instead of compiling, and an edit of the package or of the model's module gives a new name
-and a fresh compile, never a stale kernel.
-
-A scheme's module takes the family's scheme-free functions (those that inline the model but do not
-depend on the scheme, :attr:`Family.shared`) from the model's any-scheme module
-(:meth:`Binding.shared`), so all the schemes of a model share one compilation of them.
+No source is generated; the cache keeps a directory per module name (:mod:`pfbench.backends.cache`),
+so a later process loads machine code, and an edit of the package or model gives a new name, never a
+stale kernel. A scheme's module takes the family's scheme-free functions (:attr:`Family.shared`) from
+the model's any-scheme module (:meth:`Binding.shared`), so a model's schemes share one compilation.
 """
 from __future__ import annotations
 
@@ -63,12 +57,9 @@ _CLASSES: dict[tuple[str, str], type] = {}
 
 
 class Binding:
-    """What a template module binds while :func:`build` runs it (its ``binding()``).
-
-    ``cls``: the model class (None: a plain import of the template, whose model functions are
-    stubs); ``scheme``: a :class:`~pfbench.resampling.Scheme` code, or -1 for the scheme chosen at
-    run time; ``f_tiles``: the particle kernel hands the model column-major tiles.
-    """
+    """What a template module binds while :func:`build` runs it: ``cls`` the model class (None: a plain
+    import, stubs), ``scheme`` a :class:`~pfbench.resampling.Scheme` code (-1: chosen at run time),
+    ``f_tiles`` whether the particle kernel hands the model column-major tiles."""
 
     def __init__(self, family: str, cls: type | None, scheme: int, f_tiles: bool):
         self.family, self.cls, self.scheme, self.f_tiles = family, cls, scheme, f_tiles
@@ -90,15 +81,13 @@ class Binding:
         return getattr(numba_resampling, numba_resampling.kernel_name(None if self.scheme < 0 else self.scheme))
 
     def shared(self, name: str, own):
-        """``own`` in the any-scheme module; in a scheme's module, the any-scheme module's function
-        ``name`` (compiled once per model for every scheme)."""
+        """``own`` in the any-scheme module, else the any-scheme module's ``name`` (one compilation per model)."""
         if self.cls is None or self.scheme < 0:
             return own
         return getattr(build(self.family, self.cls, None, f_tiles=self.f_tiles), name)
 
     def jit(self, **options):
-        """:func:`pfbench.backends.cache.njit` with the disk cache on when numba can reload this
-        model's code in a later process (:func:`disk_cacheable`)."""
+        """:func:`pfbench.backends.cache.njit`, disk-cached when :func:`disk_cacheable`."""
         return cache.njit(cache=self.cacheable, **options)
 
 
@@ -110,12 +99,9 @@ def binding() -> Binding:
 def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> types.ModuleType:
     """The compiled kernel module of ``family`` for a model (class or instance) and a scheme.
 
-    ``scheme``: a :class:`~pfbench.resampling.Scheme`, its name or code; None: the scheme is
-    chosen at run time (the module that per-step callers and the shared functions use).
-    ``f_tiles``: whether the particle kernel hands the model column-major tiles (default:
-    :func:`column_major_tiles` of ``model``). The drivers in the module are numba dispatchers: they
-    compile on first call for the argument types (the particle dtype among them) and load from the
-    disk cache after that.
+    ``scheme``: a :class:`~pfbench.resampling.Scheme`, its name or code; None: chosen at run time (the
+    module of per-step callers and the shared functions). ``f_tiles``: default
+    :func:`column_major_tiles` of ``model``. Its drivers compile on first call per argument types.
     """
     from ..resampling import Scheme
 
@@ -150,9 +136,8 @@ def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> ty
 
 def column_major_tiles(model) -> bool:
     """Whether the particle kernel hands this model its tiles typed column-major ('F'): a model
-    *instance* with one state and one noise component (its (tile, 1) arrays are both layouts; see
-    ``numba_particle._column_major``). The dimensions are the instance's, which may differ from its
-    class's defaults, so a class alone gets False, the layout that is right for any shape."""
+    *instance* with one state and one noise component (``numba_particle._column_major``); a class,
+    whose instances may have other dimensions, gets False, right for any shape."""
     if isinstance(model, type):
         return False
     return int(getattr(model, "n_x", 0)) == 1 and int(getattr(model, "n_noise", 0)) == 1
@@ -183,9 +168,8 @@ def model_function(cls: type, name: str):
 
 
 def disk_cacheable(cls: type) -> bool:
-    """Whether numba can reload this model's compiled code in a later process: numba's cache
-    re-imports a function's module by name, so models defined in ``exec``'d code, notebooks or
-    modules that cannot be found again are compiled in memory only."""
+    """Whether numba can reload this model's code in a later process: its cache re-imports a function's
+    module by name, so models from ``exec``'d code or notebooks are compiled in memory only."""
     try:
         src = inspect.getsourcefile(inspect.getattr_static(cls, "transition").__func__)
     except TypeError:
@@ -213,8 +197,7 @@ def _source_fingerprint(cls: type, fam: Family) -> bytes:
 
 
 def twin(func, name: str):
-    """A copy of ``func`` under another name: its own dispatcher and cache entry (a serial and a
-    ``parallel=True`` compilation of one Python function)."""
+    """A copy of ``func`` named ``name``, with its own dispatcher and cache entry (serial and parallel twins)."""
     f = types.FunctionType(func.__code__, func.__globals__, name, func.__defaults__, func.__closure__)
     f.__qualname__ = name
     f.__doc__ = func.__doc__

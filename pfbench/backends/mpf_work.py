@@ -1,16 +1,10 @@
 """The numba MPF kernel's arguments as named groups (:mod:`pfbench.backends.numba_mpf`).
 
-The drivers take the parameters, the generator, ``u`` and three groups: :class:`Structure` (the
-model's linear-Gaussian split), :class:`Outputs` and :class:`Work` (the kernel's arrays,
-allocated by the host, :func:`work_arrays`). Structure and work are made of small groups, one per concept (:class:`Affine`,
-:class:`Gaussians`, ...), and a function called by address takes the small groups it uses: an
-array in a function's arguments is compile time whether the function reads it or not (measured:
-the Kalman update compiled 0.5 s slower taking all of :class:`Work` than taking its 15 arrays).
-numba types a named tuple by its fields, so the argument types of every call by address are
-``numba.typeof`` of the very objects the host passes
-(:func:`pfbench.backends.particle_work.pass_types`): the order of the fields is written once, here.
-Both drivers fill one :class:`Work` type (the Kalman driver with one copy and no x^n), so the step
-math they share is compiled once for both.
+The drivers take the parameters, the generator, ``u``, :class:`Structure`, :class:`Outputs` and
+:class:`Work` (allocated by the host), each made of small groups; a function called by address takes
+only the groups it uses, as every array argument costs compile time whether read or not. Argument
+types are ``numba.typeof`` of the objects passed (:func:`pfbench.backends.particle_work.pass_types`).
+Both drivers fill one :class:`Work` type, so the step math they share is compiled once.
 """
 from __future__ import annotations
 
@@ -42,8 +36,7 @@ class Split(NamedTuple):
 
 
 class Noise(NamedTuple):
-    """The process noise: Q^n, the decorrelated Q^l, T = Q^ln (Q^n)^-1 and whether there is a
-    cross-covariance Q^ln (``corr``)."""
+    """The process noise: Q^n, the decorrelated Q^l, T = Q^ln (Q^n)^-1, ``corr``: whether Q^ln != 0."""
 
     Qn: np.ndarray
     Ql: np.ndarray
@@ -89,9 +82,8 @@ class Outputs(NamedTuple):
 
 
 class Conditioning(NamedTuple):
-    """The x^n sampling and conditioning of a step: the noise z (n, d_n); A^n P (n, d_n, d_l) and
-    N = A^n P A^n' + Q^n (n, d_n, d_n); N's Cholesky factor L (n, d_n, d_n); scratch w (d_n,),
-    V (d_n, d_l)."""
+    """The x^n sampling and conditioning: noise z (n, d_n); A^n P (n, d_n, d_l), N = A^n P A^n' + Q^n
+    and its Cholesky factor L (n, d_n, d_n); scratch w (d_n,), V (d_n, d_l)."""
 
     z: np.ndarray
     APn: np.ndarray
@@ -120,8 +112,7 @@ class Weights(NamedTuple):
 
 
 class Moments(NamedTuple):
-    """The weighted means and variances of x^n (d_n,) and of the x^l means (d_l,); the
-    deviations from the mixture's mean (n, d_n + d_l)."""
+    """Weighted means and variances of x^n and of the x^l means; deviations from the mixture's mean."""
 
     mean_n: np.ndarray
     var_n: np.ndarray
@@ -131,9 +122,8 @@ class Moments(NamedTuple):
 
 
 class Work(NamedTuple):
-    """The kernel's arrays (:func:`work_arrays`), float64 C arrays but the ancestors; n particles,
-    d_n and d_l the sizes of x^n and x^l. The Kalman driver fills it with n = 1, d_n = 0 and keeps
-    its x^l state in ``cond``."""
+    """The kernel's arrays (:func:`work_arrays`), float64 C but the ancestors, for n particles; the Kalman
+    driver fills it with n = 1, d_n = 0 and keeps its x^l state in ``cond``."""
 
     #: (n, d_n) the x^n particles: the prior draw (the host's), then the resampled ones
     xn: np.ndarray
@@ -161,10 +151,9 @@ class Work(NamedTuple):
 
 
 def work_arrays(xn, d_l: int, n_y: int) -> Work:
-    """The kernel's arrays for the x^n particles ``xn`` (n, d_n), float64 C (kept as
-    :attr:`Work.xn`; None: the Kalman driver, one copy, no x^n), d_l linear states and n_y
-    outputs. Allocated by the host: the same groups built in the driver (compiled code) compiled no
-    faster than the driver's unboxing of them."""
+    """The kernel's arrays for the x^n particles ``xn`` (n, d_n), float64 C, kept as :attr:`Work.xn`
+    (None: the Kalman driver's one copy), d_l linear states and n_y outputs; allocated by the host, as
+    building them in the driver compiled no faster than unboxing them."""
     if xn is None:
         xn = np.empty((1, 0))
     n, d_n = xn.shape

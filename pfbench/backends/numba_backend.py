@@ -1,11 +1,6 @@
-"""The numba backend: the particle family's run entry point and the calls by address that every
-family's driver makes.
-
-Kernels are built by :func:`pfbench.backends.kernels.build` (one module per model, scheme and tile
-layout, from the family's template module); this module runs them: :func:`run_group` (the
-particle kernel), :func:`run_mpf`/:func:`run_kalman` and :func:`run_guided`, and
-:func:`native_addresses`, which compiles the functions a driver calls by address (on a cold cache
-in a helper process, :mod:`pfbench.backends.compile_helper`) and returns their entry points.
+"""The numba backend's host side: :func:`run_group` (particle), :func:`run_mpf` and :func:`run_guided`
+build their family's kernel (:func:`pfbench.backends.kernels.build`), allocate its argument groups and
+call its driver with the entry addresses of what it calls by address (:func:`native_addresses`).
 """
 from __future__ import annotations
 
@@ -21,21 +16,15 @@ from .kernels import build, column_major_tiles
 from .particle_work import Outputs, Settings, Step, pass_types, work_arrays
 
 _LOCK = threading.RLock()
-
-
 _WARM: set = set()
-#: numba's default ``workqueue`` threading layer aborts when two Python threads launch parallel
-#: regions at once: every ``run_group_parallel`` call holds this lock (tbb/omp would not need it)
+#: numba's ``workqueue`` threading layer aborts when two Python threads launch parallel regions at
+#: once: every ``run_group_parallel`` call holds this lock
 _PARALLEL_LOCK = threading.Lock()
 
 
 def warm_up(model, p, y, u, dtype, scheme=0, parallel: bool = False) -> None:
-    """Compile (or load) the particle kernel for these argument types outside any timed region.
-
-    numba compiles on the first call, so one call on a single step and particle with a
-    throwaway generator; the caller's random streams are not touched. ``parallel`` warms the
-    all-threads compilation instead of the serial one: a call compiles only the variant it runs.
-    """
+    """Compile (or load) the particle kernel for these argument types outside any timed region:
+    one call on one step and particle with a throwaway generator (``parallel``: the all-threads one)."""
     key = (type(model), column_major_tiles(model), np.dtype(dtype).str, int(scheme),
            tuple(type(v).__name__ for v in p), parallel)
     if key in _WARM:
@@ -56,15 +45,9 @@ def warm_up(model, p, y, u, dtype, scheme=0, parallel: bool = False) -> None:
 def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess, inc, resampled,
               degen, hist_x=None, hist_w=None, *, brngs=None, n_threads: int | None = 1,
               block: int | None = None, estimate: str = "pre") -> None:
-    """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL).
-
-    ``brngs``: the stream-block generators (:func:`pfbench.backends.numpy_backend.block_streams`;
-    None: ``[rng]``, one block); ``block``: the largest stream block (default
-    :data:`pfbench.backends.numpy_backend.BLOCK`; the layout is
-    :func:`~pfbench.backends.numpy_backend.block_bounds`). With more than one block and
-    ``n_threads`` != 1 the block loops run on ``n_threads`` numba threads (None: all); results do
-    not depend on the thread count. ``estimate``: ``pre`` or ``post`` (the kernel's ``post`` flag).
-    """
+    """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL); ``block``: the
+    largest stream block. Above one block and with ``n_threads`` != 1 (None: all) the block loops run on
+    numba threads, with results independent of the thread count."""
     import warnings
 
     from numba.core.errors import NumbaPendingDeprecationWarning
@@ -82,8 +65,7 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = build("particle", model, scheme)
     work = work_arrays(x, bounds.shape[0] - 1, bounds, int(method))
-    # in NumPy, as the NumPy backend, straight into the kernel's first particle buffer (block by
-    # block on the run's threads above one block: the draw and its first touch of the buffer)
+    # the NumPy backend's draw, into the kernel's first particle buffer (per block on the run's threads)
     draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0], brngs, n_threads)
     out = Outputs(x, est, var, ess, inc, resampled, degen, hist_x, hist_w)
     settings = Settings(int(model.n_noise), int(method), int(scheme), float(ess_threshold),
@@ -120,24 +102,17 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
             driver(*args)
 
 
-#: (driver, parameter type, particle, y and u dtypes) -> the addresses of passes A, B and C for
-#: that driver: found once per process (:func:`native_addresses` types every pass's arguments and
-#: looks its entry point up; measured, Ob1, N_p = 1000: a run's time beyond its steps 0.35 ms when
-#: done on every run, 0.19 ms with this table, 0.8 ns per particle-step less at M = 200); compiled
-#: code stays at its address for the life of the process
+#: (driver, parameter type, particle, y and u dtypes) -> the addresses of passes A, B and C, found
+#: once per process (compiled code keeps its address)
 _PASS_ADDRESSES: dict = {}
 
 
 def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f_tiles: bool = False) -> list:
-    """The native entry addresses of the functions ``driver`` calls by address
-    (:mod:`pfbench.backends.native_call`), in the order of ``calls``: ``(name, argument types, return
-    type)`` of functions of the kernel module ``mod`` that do not depend on the scheme: the ones that
-    inline or call the model (:data:`SCHEME_FREE`, the model's own functions), or model-free ones
-    it imports (step math). A return type of None means "known once compiled": such a function is
-    only called by functions listed after it, which are compiled after it. When the driver (called
-    with ``args``, the addresses' places holding ints) and any of the functions not named in
-    ``here`` are cold, a helper process compiles those functions while this one compiles the driver
-    and then the ones in ``here`` (:mod:`pfbench.backends.compile_helper`)."""
+    """The native entry addresses of ``calls``, ``(name, argument types, return type)`` of scheme-free
+    functions of the kernel module ``mod`` (:attr:`pfbench.backends.kernels.Family.shared`, the model's,
+    step math), which ``driver`` (called with ``args``) calls by address; return type None: known once
+    compiled (only later entries call it). On a cold cache a helper compiles those not in ``here``
+    while this process compiles the driver and ``here`` (:mod:`pfbench.backends.compile_helper`)."""
     funcs = [(name, getattr(mod, name), argtypes, restype) for name, argtypes, restype in calls]
     away = [(name, f, a) for name, f, a, _ in funcs if name not in here]
     with _LOCK:  # threads of one process start one helper, not one each
@@ -162,20 +137,17 @@ def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f
 
 
 def _raised_in_parallel(exc: SystemError) -> BaseException:
-    """The exception compiled code raised inside a parallel region (the model's own ``raise``,
-    e.g. an :class:`~pfbench.errors.UnsupportedError`): numba's parallel kernel returns with it
-    set, which Python reports as a SystemError caused by it. The serial kernel raises it as it
-    is, so the all-threads one does too; a SystemError without such a cause stays one."""
+    """The exception compiled code raised in a parallel region (numba reports it as the cause of a
+    SystemError), so the all-threads kernel raises what the serial one does; else ``exc``."""
     cause = exc.__cause__
     return cause if isinstance(cause, Exception) and not isinstance(cause, SystemError) else exc
 
 
 # --------------------------------------------------------------------------- the MPF family
 def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
-    """The numba MPF recursion ([Schon2005] Alg. 1; :func:`pfbench.filters.marginalized.run_mpf`)
-    from the prior draws ``xn`` of x^n (None when every state is linear: then one Kalman/EKF
-    recursion, no random numbers and no scheme); ``s``: the model's structure
-    (:func:`pfbench.filters.marginalized.structure`); fills the outputs in place."""
+    """The numba MPF recursion ([Schon2005] Alg. 1; :func:`pfbench.filters.marginalized.run_mpf`) from
+    the prior draws ``xn`` of x^n (None: every state linear, one Kalman/EKF recursion); ``s``:
+    :func:`pfbench.filters.marginalized.structure`; fills the outputs in place."""
     u = np.ascontiguousarray(u)  # its rows are then the C arrays _run_calls types
     st = mpf_work.structure_group(s)
     out = mpf_work.Outputs(est, cov, ess, inc, degen)
@@ -199,18 +171,14 @@ def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
     mod.run(*args[:-1], _call_addresses(mod.run, args, find))
 
 
-#: (driver, the type fingerprints of its arguments) -> the int64 array of the entry addresses of
-#: the functions it calls by address (MPF and guided drivers): found once per process, as the
-#: particle kernel's passes are (:data:`_PASS_ADDRESSES`). The argument types of those calls are
-#: ``numba.typeof`` of the groups passed, which costs milliseconds for the MPF's (numba types its
-#: 37 work arrays one by one); the fingerprints, what numba's dispatcher keys its compiled code on,
-#: take 10 us
+#: (driver, its arguments' type fingerprints) -> the int64 entry addresses of its calls by address
+#: (MPF, guided), found once per process; a fingerprint, numba's dispatcher key, is far cheaper than
+#: ``numba.typeof`` of the groups
 _CALL_ADDRESSES: dict = {}
 
 
 def _call_addresses(driver, args, find) -> np.ndarray:
-    """The addresses ``find()`` returns (:func:`native_addresses`) for ``driver`` called with
-    ``args``, looked up in :data:`_CALL_ADDRESSES` first."""
+    """``find()`` (:func:`native_addresses`) for ``driver`` and ``args``, kept in :data:`_CALL_ADDRESSES`."""
     import numba
     from numba._dispatcher import compute_fingerprint
 
@@ -229,10 +197,7 @@ def _call_addresses(driver, args, find) -> np.ndarray:
 
 def _step_calls(st, out, work) -> dict:
     """Name -> (argument types, return type) of the step math both MPF drivers call by address
-    (``_time_update``, ``_kalman_update``, ``_mixture_moments`` of
-    :mod:`pfbench.backends.numba_mpf_steps`): the types of the groups the host hands the driver
-    (:mod:`pfbench.backends.mpf_work`) and of the step ``t`` and weight sum. The driver's compile
-    refuses other types (:func:`pfbench.backends.native_call.caller`)."""
+    (:mod:`pfbench.backends.numba_mpf_steps`), typed from the groups the host passes."""
     import numba
 
     none, w = numba.types.none, work
@@ -242,25 +207,15 @@ def _step_calls(st, out, work) -> dict:
                                  none)}
 
 
-#: the functions of :data:`pfbench.backends.numba_mpf.RUN_CALLS` that a cold start compiles in
-#: this process after the driver, while a helper compiles the others: the model's, the wrappers
-#: that call them and ``_kalman_update``, the split that balances the two cores on Ob5 (measured,
-#: cold ``pfbench run --model ob5 --method mpf``: here the driver 1.9 s and these 2.8 s, in the
-#: helper the rest 4.3 s; both done about 5.1 s after the start)
+#: the :data:`~pfbench.backends.numba_mpf.RUN_CALLS` a cold start compiles here after the driver
+#: while a helper compiles the rest: the split that balances two cores on Ob5
 _RUN_HERE = ("_normals_into", "_sandwich", "_condition", "_time_update", "_weigh", "_moments", "_mixture_moments")
 
 
 def _run_calls(p, rng, u, st, work) -> dict:
-    """Name -> (argument types, return type) of the other functions the numba MPF driver ``run``
-    calls by address (:data:`pfbench.backends.numba_mpf.RUN_CALLS`): the model's
-    ``cl_transition``, ``cl_observation`` and ``cl_constrain`` on the :class:`~pfbench.backends.mpf_work.Work`
-    arrays they get (return type None: whatever the model returns, known once they are compiled,
-    which is done before their callers), the three wrappers that call them
-    (``_transition_into``, ``_observation_into``, ``_constrain_into``), the x^n noise, the
-    ``sandwich`` and ``condition`` of steps 1-2 and the weights and moments: each the types of the
-    objects the driver passes (``u[t]`` a row of the C-contiguous ``u``, ``t`` and the model's
-    address int64, the weight sum float64). The driver's compile refuses other types
-    (:func:`pfbench.backends.native_call.caller`)."""
+    """Name -> (argument types, return type) of the rest of :data:`pfbench.backends.numba_mpf.RUN_CALLS`:
+    the model's ``cl_*`` functions (return type None: known once compiled), their wrappers, the x^n
+    noise, steps 1-2, weights and moments, typed from the objects the driver passes."""
     import numba
 
     t = numba.types
@@ -294,12 +249,8 @@ def run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est
 
 
 def _model_calls(kind, p, y, u, x, n_noise) -> list:
-    """``(name, argument types, return type)`` of the two model calls a whole run makes by address
-    (:mod:`pfbench.backends.numba_guided`, "the model's calls"): the proposal, then the proposal's
-    weight (``kind`` "proposal") or the predictive likelihood ("optimal"), each ``numba.typeof``
-    of what the kernel passes: rows of the C-contiguous ``y``, ``u``, the particles ``x``, the step
-    (int64) and arrays like the ones the kernel allocates for the noise, the new particles and the
-    log-likelihoods (float64, C order)."""
+    """``(name, argument types, return type)`` of a guided run's two model calls by address: the
+    proposal, then its weight (``kind`` "proposal") or the predictive likelihood ("optimal")."""
     import numba
 
     none = numba.types.none

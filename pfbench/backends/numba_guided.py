@@ -1,36 +1,21 @@
-"""The numba guided-filter kernel: a model's own proposal, or the locally optimal one.
+"""The numba guided-filter kernel, the ``guided`` family's template: a model's own proposal, or the
+locally optimal one.
 
-This is the compiled twin of the NumPy reference in :mod:`pfbench.filters.guided`: the same steps,
-the same random draws in the same order, the same weighting (:mod:`pfbench.backends.numba_weights`)
-and resampling (:mod:`pfbench.backends.numba_resampling`, the scheme bound as ``_resample``). It calls the model through
-four module globals, ``_initial``, ``_proposal``, ``_proposal_log_weight`` and
-``_predictive_log_likelihood``. As a file it is importable (they are placeholders here);
-:func:`pfbench.backends.kernels.build` (family ``"guided"``) runs it per model class with the
-model's compiled functions bound to those names. A whole run takes the named groups of
-:mod:`pfbench.backends.guided_work`.
+The compiled twin of :mod:`pfbench.filters.guided` (same steps, same draws in the same order, weights
+from :mod:`pfbench.backends.numba_weights`, resampling from :mod:`pfbench.backends.numba_resampling`
+bound as ``_resample``). :func:`pfbench.backends.kernels.build` runs it per model class with the
+model's functions bound to ``_initial``, ``_proposal``, ``_proposal_log_weight`` and
+``_predictive_log_likelihood``; a whole run takes the groups of :mod:`pfbench.backends.guided_work`.
+Each kind of proposal has its own step and run functions, so numba compiles only the model functions
+that kind uses. :func:`init` and the ``step_*`` functions also serve per-step calls from other
+compiled code (the closed-loop PMSM simulation, :func:`pfbench.filters.guided.step_functions`); they
+and :func:`_reweigh` are ``inline="always"``, so a caller is compiled and optimised once, not per level.
 
-Each kind of proposal has its own step and run functions, so numba only ever compiles the model
-functions that kind uses (a model with its own proposal need not define
-``predictive_log_likelihood`` and vice versa). A whole run starts from particles the caller drew
-in NumPy; :func:`init` and the ``step_*`` functions are called one step at a time from other
-compiled code (the closed-loop PMSM simulation), through
-:func:`pfbench.filters.guided.step_functions`.
-
-:func:`init`, :func:`_reweigh` and the ``step_*`` functions are ``inline="always"``: numba inlines
-them into the function that calls them, so a whole run (or a closed-loop caller) is compiled and
-optimised once instead of once per level (seconds less on a cold cache; the same operations). A
-whole run calls the model itself by address (see "the model's calls" below): measured on the
-reduced PMSM model, a cold ``pfbench run --method guided`` 4.7-5.0 s with the model inlined, 3.2-3.3 s
-with the model's wrappers compiled in a helper meanwhile; the run 69.0 vs 70.0 ns per
-particle-step (N_p = 1000).
-
-Arguments shared by the step functions: ``p`` the model's ``params()``, ``rng`` the generator,
-``x`` (n, n_x) particles (updated in place; their dtype is the particle dtype), ``lw`` (n,)
-normalised log-weights (updated in place), ``y``/``u`` the measurement and input of step ``t``,
-``n_noise`` standard normals per particle for the proposal, ``scheme`` a
-:class:`~pfbench.resampling.Scheme` code, ``threshold`` the resampling threshold as a particle count
-(resample when N_eff < threshold), ``mean``/``var`` (n_x,) outputs: the weighted mean and variance of
-the particles of step t. They return ``(loglik increment, N_eff, resampled, degenerate)``.
+Step-function arguments: ``p`` the model's ``params()``; ``x`` (n, n_x) particles and ``lw`` (n,)
+normalised log-weights, updated in place; ``y``/``u`` step ``t``'s measurement and input; ``n_noise``
+normals per particle; ``scheme`` a :class:`~pfbench.resampling.Scheme` code; ``threshold`` a particle
+count (resample when N_eff < threshold); ``mean``/``var`` (n_x,) outputs, the weighted moments of step
+t. They return ``(loglik increment, N_eff, resampled, degenerate)``.
 """
 import numpy as _np
 
@@ -49,22 +34,16 @@ _proposal = _b.model("proposal")
 _proposal_log_weight = _b.model("proposal_log_weight")
 _predictive_log_likelihood = _b.model("predictive_log_likelihood")
 _resample = _b.resample
-#: the resampling scheme's code, -1 in the any-scheme module (per-step use from compiled callers,
-#: and the module a compile helper builds the model's calls from)
+#: the resampling scheme's code, -1 in the any-scheme module (per-step callers, the shared functions)
 _SCHEME = _b.scheme
 _call6 = _caller(6)
 _call7 = _caller(7)
 
 # --------------------------------------------------------------------------- the model's calls
-# A whole run (``run_proposal``/``run_optimal``, in a scheme's module) calls the model through
-# these, by address (:mod:`pfbench.backends.native_call`; ``addresses`` = (proposal, weight)): they
-# are the model's code, compiled once per model for all schemes (``SCHEME_FREE`` in
-# :mod:`pfbench.backends.numba_backend`) and, on a cold cache, in a helper process while the run
-# compiles here (:mod:`pfbench.backends.compile_helper`). The any-scheme module, which serves
-# per-step use from other compiled code, calls the model directly (``_SCHEME == -1``, a constant
-# numba prunes on). Only ever called by address: no CPython wrapper.
-
-
+# A whole run (in a scheme's module) calls the model through these, by address
+# (:mod:`pfbench.backends.native_call`; ``addresses`` = (proposal, weight)): scheme-free
+# (:attr:`pfbench.backends.kernels.Family.shared`), so compiled once per model, on a cold cache in a
+# helper. The any-scheme module, for per-step callers, calls the model directly (``_SCHEME == -1``).
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _propose_into(x, y, u, t, noise, p, xn):
     """xn = the model's ``proposal(x, y, u, t, noise, p)``."""
@@ -126,9 +105,8 @@ def init(p, rng, x, lw):
 
 @_njit(nogil=True, inline="always")
 def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, cdf):
-    """Weigh (log-sum-exp), N_eff, then resample or keep the normalised log-weights (twin of
-    ``pfbench.filters.guided._reweigh``). Returns (increment, N_eff, resampled, degenerate, total);
-    ``wu`` holds equal weights after a resampling."""
+    """Twin of ``pfbench.filters.guided._reweigh``: weigh, N_eff, then resample (``wu`` equal weights after)
+    or keep the normalised log-weights. Returns (increment, N_eff, resampled, degenerate, total)."""
     n = x.shape[0]
     m, total, deg = _weigh(lw, ll, wu, cdf)
     inc = -_np.inf if deg else m + _np.log(total)
@@ -165,10 +143,9 @@ def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var,
 
 @_njit(nogil=True, inline="always")
 def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, addresses=None):
-    """The locally optimal proposal, fully adapted order ([Doucet2000]; [Thesis] eqs. 4.24-4.25):
-    weight by p(y_t | x_{t-1}), resample when N_eff < threshold, then propagate
-    x_t ~ p(x_t | x_{t-1}, y_t); the estimate is the weighted mean of the propagated particles.
-    ``addresses`` as for :func:`step_proposal`."""
+    """The locally optimal proposal, fully adapted ([Doucet2000]; [Thesis] eqs. 4.24-4.25): weight by
+    p(y_t | x_{t-1}), resample when N_eff < threshold, propagate x_t ~ p(x_t | x_{t-1}, y_t); the
+    estimate is the weighted mean of the propagated particles."""
     n = x.shape[0]
     wu = _np.empty(n)
     ll = _predictive(y, x, u, t, p, addresses)
@@ -182,15 +159,9 @@ def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, 
 
 @_njit(nogil=True)
 def run_proposal(p, rng, y, u, x, lw, out, settings):
-    """All M steps with the model's own proposal; ``out`` (a
-    :class:`~pfbench.backends.guided_work.Outputs`, (M, ...) arrays) filled in place.
-
-    ``x``, ``lw``: the initial particles and log-weights, drawn from ``rng`` by the caller with the
-    model's NumPy ``initial`` (:func:`pfbench.filters.guided.numpy_init`, the NumPy reference's
-    draw; the kernel continues the same stream), so a whole run does not compile the model's
-    ``initial`` (measured: 1.55 s of a cold start on the reduced PMSM model). ``settings``: a
-    :class:`~pfbench.backends.guided_work.Settings`, with the native entry points of
-    ``_propose_into`` and ``_weight_into``."""
+    """All M steps with the model's own proposal, filling ``out``, from ``x``, ``lw`` drawn by the caller
+    with the model's NumPy ``initial`` (:func:`pfbench.filters.guided.numpy_init`; the kernel continues
+    that stream); ``settings`` holds the addresses of ``_propose_into`` and ``_weight_into``."""
     addresses = (settings.propose, settings.weight)
     n_noise, scheme, threshold = settings.n_noise, settings.scheme, settings.threshold
     for t in range(y.shape[0]):
@@ -200,9 +171,8 @@ def run_proposal(p, rng, y, u, x, lw, out, settings):
 
 @_njit(nogil=True)
 def run_optimal(p, rng, y, u, x, lw, out, settings):
-    """All M steps with the locally optimal proposal; ``out`` filled in place (``x``, ``lw``
-    initialised by the caller, as for :func:`run_proposal`; ``settings`` holds the addresses of
-    ``_propose_into`` and ``_predictive_into``)."""
+    """All M steps with the locally optimal proposal, as :func:`run_proposal` (``settings`` with the
+    addresses of ``_propose_into`` and ``_predictive_into``)."""
     addresses = (settings.propose, settings.weight)
     n_noise, scheme, threshold = settings.n_noise, settings.scheme, settings.threshold
     for t in range(y.shape[0]):

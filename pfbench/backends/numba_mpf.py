@@ -1,27 +1,13 @@
-"""The numba marginalized-PF kernel ([Schon2005] Alg. 1): the compiled twin of
-``pfbench.filters.marginalized._run_numpy``.
+"""The numba marginalized-PF kernel ([Schon2005] Alg. 1), the ``mpf`` family's template: the compiled
+twin of ``pfbench.filters.marginalized._run_numpy``, with the same draws in the same order and the same
+step math (:mod:`pfbench.backends.numba_mpf_steps`; weights and resampling from
+:mod:`pfbench.backends.numba_weights` and :mod:`pfbench.backends.numba_resampling`, the scheme bound as
+``_resample``). :func:`pfbench.backends.kernels.build` runs it per model class with the model's
+functions bound to ``_cl_transition``, ``_cl_observation`` and ``_cl_constrain``; the drivers take the
+groups of :mod:`pfbench.backends.mpf_work`.
 
-Same steps, same random draws in the same order (the prior, drawn by the caller with the model's
-NumPy ``initial`` when d_n > 0, then per step the x^n noise and the resampling draws), the same
-step math. The NumPy backend runs the vectorised helpers of :mod:`pfbench.filters.marginalized`;
-their compiled twins, scalar loops with the same operations in the same order, are in
-:mod:`pfbench.backends.numba_mpf_steps` (they call no model function, so every model and scheme
-shares one compilation of them); ``kalman_predict`` is ``sandwich``, ``condition``,
-``time_update`` in :func:`run`. Weighting, moments and resampling are the package's one compiled
-versions (:mod:`pfbench.backends.numba_weights`, :mod:`pfbench.backends.numba_resampling`, the
-scheme bound as ``_resample``). The model is called through the module globals
-``_cl_transition``, ``_cl_observation`` and ``_cl_constrain`` (placeholders here), once per step
-on all particles: :func:`run` through three wrappers called by address, which call the model
-by address in turn (see "the model's calls" below), :func:`run_linear` directly (it calls the
-step math by address instead).
-:func:`pfbench.backends.kernels.build` runs this file per model class with the model's compiled
-functions bound to those names, so numba caches the whole kernel on disk. The drivers and the
-functions they call by address take the named groups of :mod:`pfbench.backends.mpf_work`.
-
-Two entry points, so a call compiles only what it runs: :func:`run` for models with nonlinear
-states (d_n > 0) and :func:`run_linear` for d_n = 0 (the ``kalman`` method and the MPF on a fully
-linear model), which needs no prior draw, no x^n sampling or conditioning, no resampling and no
-particle weighting.
+Two drivers, so a call compiles only what it runs: :func:`run` (d_n > 0) and :func:`run_linear`
+(d_n = 0: the ``kalman`` method and the MPF of a fully linear model; no draws, no resampling).
 """
 import numpy as _np
 
@@ -44,9 +30,8 @@ _call5 = _caller(5)
 _call7 = _caller(7)
 _call8 = _caller(8)
 
-#: the functions :func:`run` calls by address, in the order of its ``addresses`` (their argument
-#: types: ``_run_calls`` and ``_step_calls`` of :mod:`pfbench.backends.numba_backend`): the model's
-#: functions, the wrappers that call them, then the step math
+#: what :func:`run` calls by address, in the order of its ``addresses`` (their types: ``_run_calls``
+#: and ``_step_calls`` of :mod:`pfbench.backends.numba_backend`)
 RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_into", "_observation_into",
              "_constrain_into", "_normals_into", "_sandwich", "_condition", "_time_update", "_kalman_update", "_weigh",
              "_moments", "_mixture_moments")
@@ -65,15 +50,11 @@ _resample = _b.resample
 
 
 # --------------------------------------------------------------------------- the model's calls
-# The drivers call the model through these three, by address (:mod:`pfbench.backends.native_call`):
-# they are compiled once per model for all schemes (``SCHEME_FREE`` in
-# :mod:`pfbench.backends.numba_backend`), not again inside every driver, and on a cold cache in a
-# helper process while the driver compiles here (:mod:`pfbench.backends.compile_helper`). Each
-# copies the model's arrays into the kernel's float64 C arrays of the declared shapes (a ValueError
-# for other shapes), so the drivers and the step math see one array type for every model. They
-# call the model's function by address too (``model_address``), so its code is compiled once, in
-# its own function, not again inside each wrapper (measured: 0.9 s of a cold Ob5 start). None of
-# them is called from Python (``no_cpython_wrapper``: 0.03-0.05 s less to compile each).
+# :func:`run` calls the model through these three, by address (:mod:`pfbench.backends.native_call`):
+# scheme-free (:attr:`pfbench.backends.kernels.Family.shared`), so compiled once per model, on a cold
+# cache in a helper. Each copies what the model returns into the kernel's float64 C arrays (a
+# ValueError for another shape), so the drivers and step math see one array type for every model,
+# and calls the model by address in turn, so the model is compiled once, in its own function.
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _transition_into(xn, u, t, p, tn, tl, model_address):
     """``cl_transition(xn, u, t, p)`` into f^n, A^n (``tn``) and f^l, A^l (``tl``,
@@ -107,35 +88,19 @@ _constrain_into = _b.shared("_constrain_into", _constrain_into)
 # --------------------------------------------------------------------------- entry points
 @_njit(nogil=True)
 def run(p, rng, u, st, out, work, scheme, addresses):
-    """Run the MPF over all steps from the initial x^n particles ``work.xn`` (n, d_n), C-contiguous
-    float64, updated in place (one random stream, documented order).
+    """All steps of the MPF from the prior x^n particles ``work.xn`` (n, d_n), updated in place; the
+    caller draws them from ``rng`` with the model's NumPy ``initial`` and the kernel continues that stream.
 
-    ``work.xn`` is drawn from ``rng`` by the caller with the model's NumPy ``initial``, as the
-    NumPy reference draws it (the kernel continues the same stream), so the kernel does not
-    compile the model's ``initial`` (measured: 1.3 s of a cold Ob5 start).
+    ``st``: :class:`~pfbench.backends.mpf_work.Structure` (``st.meas.yw`` the measurements, whitened
+    if ``whiten``); ``out``: :class:`~pfbench.backends.mpf_work.Outputs`, filled; ``work``:
+    :class:`~pfbench.backends.mpf_work.Work`; ``scheme``: a :class:`~pfbench.resampling.Scheme` code;
+    ``addresses``: the entry points of :data:`RUN_CALLS`, in order. Everything it calls per step goes
+    by address, so it compiles as a loop of calls and a cold start compiles the pieces on two cores
+    (:func:`pfbench.backends.numba_backend.native_addresses`).
 
-    ``st``: the model's :class:`~pfbench.backends.mpf_work.Structure` (d_n > 0; :func:`run_linear`
-    serves d_n = 0), its ``yw`` (M, n_y) the (whitened, if ``whiten``) measurements; ``out``: the
-    :class:`~pfbench.backends.mpf_work.Outputs` est (M, n_x), cov (M, n_x, n_x), ess, inc, degen
-    (M,), filled; ``work``: the :class:`~pfbench.backends.mpf_work.Work` arrays; ``scheme`` a
-    :class:`~pfbench.resampling.Scheme` code. ``addresses``: the native entry points of the
-    functions in :data:`RUN_CALLS`, in that order, compiled for the argument types of their calls
-    here (:func:`pfbench.backends.native_call.entry_address`).
-
-    Everything it calls per step goes by address, the model's wrappers and the step math alike:
-    this function then compiles as a loop of calls (numba links a directly called function into
-    the caller's module and optimises and emits it there once more), and a cold start compiles
-    the pieces on two cores (:func:`pfbench.backends.numba_backend.native_addresses`). Measured
-    (Ob5, fresh caches, one process): the first run 10.5 s with the step math compiled into this
-    function, 8.3 s by address; a cold ``pfbench run --model ob5 --method mpf`` 6.7 s before,
-    5.3 s after, with the helper (same machine, same session). What it costs at run time:
-    260-268 vs 271-276 ns per particle-step (N_p = 1000, 300 steps, alternating processes, the
-    same estimates to the bit), about 4 %.
-
-    Per step ([Schon2005] Alg. 1): the x^n noise, the model's ``cl_transition``, steps 1-2
-    (``sandwich``, ``condition``, ``time_update``), step 3 (``cl_constrain``), step
-    4 (``cl_observation``, ``kalman_update``, the weights), step 5 (moments,
-    ``mixture_moments``, resampling).
+    Per step ([Schon2005] Alg. 1): the x^n noise, ``cl_transition``, steps 1-2 (``sandwich``,
+    ``condition``, ``time_update``), step 3 (``cl_constrain``), step 4 (``cl_observation``,
+    ``kalman_update``, the weights), step 5 (moments, ``mixture_moments``, resampling).
     """
     # every group and array the loop uses, taken out of the groups once: the loop is then the same
     # statements as on plain arguments (each field read in it is compile time, once per statement)
@@ -193,27 +158,13 @@ LINEAR_CALLS = ("_time_update", "_kalman_update", "_mixture_moments")
 
 @_njit(nogil=True)
 def run_linear(p, u, st, out, work, addresses):
-    """The d_n = 0 case of :func:`run` (every state in x^l): one Kalman/EKF recursion, no random
-    numbers, no resampling; the same operations as :func:`run` with one particle, compiled without
-    the x^n sampling, conditioning and resampling it never runs. Arguments as for :func:`run`;
-    ``work`` holds one copy (n = 1, d_n = 0) whose x^l state is ``work.cond`` (what the
-    measurement update writes and the time update reads).
+    """The d_n = 0 case of :func:`run`: one Kalman/EKF recursion on one copy (its x^l in ``work.cond``),
+    no random numbers, no resampling; arguments as for :func:`run` (``addresses``: :data:`LINEAR_CALLS`).
 
-    The one copy's weight is exp(0) = 1 whatever its likelihood, so the weighting of :func:`run`
-    reduces to: increment = log p(y_t | Y_{t-1}) (-inf, and ``degen`` set, when that is -inf, +inf
-    or NaN, as :func:`~pfbench.backends.numba_weights.weigh` decides), N_eff = 1, the mean of x^l
-    = the copy's own.
-
-    It calls the model directly (inlined, LLVM optimises the model's code for the one copy and the
-    empty x^n, whose shapes (1, 0) it sees; by address a step of the linear-Gaussian filter took
-    2.8 us instead of 2.0 us) and the step math by address instead (``addresses``: the functions
-    of :data:`LINEAR_CALLS` compiled for the argument types of their calls here,
-    :func:`pfbench.backends.numba_backend.run_mpf`), so a cold start compiles the step math in a
-    helper process while this one compiles the driver and the model
-    (:mod:`pfbench.backends.compile_helper`). The model's arrays are copied into the kernel's
-    own, which gives the steps one argument type for every model. Measured (linear-Gaussian
-    model, 3000 steps, alternating processes): 1.95 vs 2.12 us per step with the steps inlined vs
-    by address, and a cold `pfbench run --method kalman` 5.5 s vs 4.2 s.
+    The copy's weight is 1, so the increment is log p(y_t | Y_{t-1}) (-inf, ``degen`` set, when
+    invalid, as :func:`~pfbench.backends.numba_weights.weigh` decides) and N_eff = 1. The model is
+    called directly, so LLVM optimises it for the one copy and the empty x^n; the step math by
+    address, so a cold start compiles it in a helper meanwhile.
     """
     d_l = st.split.l.shape[0]
     xn = _np.empty((1, 0))

@@ -1,22 +1,11 @@
-"""The marginalized filter's step math, compiled: the scalar-loop twins of the vectorised helpers of
-:mod:`pfbench.filters.marginalized` that the numba MPF kernel (:mod:`pfbench.backends.numba_mpf`)
-calls.
+"""The marginalized filter's step math, compiled: scalar-loop twins of the vectorised helpers of
+:mod:`pfbench.filters.marginalized`, the same operations in the same order (so both backends agree to
+rounding), which numba compiles several times faster than array expressions.
 
-Same operations on every scalar in the same order as the NumPy helpers, so both backends agree to
-rounding: :func:`sandwich` (``sandwich``), :func:`condition` (``cholesky_batch``, then
-``condition_nonlinear`` and the decorrelation of ``kalman_predict``), :func:`time_update`,
-:func:`kalman_update` and :func:`mixture_moments`. numba compiles such loops several times faster
-than array expressions (each of which becomes a broadcast loop with a temporary). They call no
-model function, so they live here, in an ordinary cached module, and are compiled once per process
-(loaded from disk after that) for every model and scheme, not once per generated kernel module.
-Each is a function of its own, which the kernel's drivers call by address
-(:mod:`pfbench.backends.native_call`): every caller would otherwise optimise and emit the machine
-code of all it calls once more. They are few (a compiled function costs a fixed 0.05-0.2 s) and
-call nothing but :func:`sandwich` and, in :func:`normals_into`, the engine's normal draws. None is
-called from Python (``no_cpython_wrapper``), except :func:`copy_into`, which copies what the
-model's structure functions return into the kernel's own arrays. Their arguments are the small named
-groups of :mod:`pfbench.backends.mpf_work` (at most eight), read by field name, so their argument
-types are ``numba.typeof`` of the groups the host passes.
+They call no model, so they live in this ordinary cached module, compiled once per process for every
+model and scheme; the MPF drivers (:mod:`pfbench.backends.numba_mpf`) call them by address
+(:mod:`pfbench.backends.native_call`) instead of compiling them into themselves again. Their
+arguments are the groups of :mod:`pfbench.backends.mpf_work`.
 """
 import numpy as np
 
@@ -27,10 +16,8 @@ from pfbench.models.base import LOG_2PI
 
 @njit(nogil=True, no_cpython_wrapper=True)
 def sandwich(A, P, Q, AP, S):
-    """Per particle: ``AP`` = A P and ``S`` = A P A' + Q, written into AP (n, d_out, d_in) and S
-    (n, d_out, d_out), for A (n, d_out, d_in), P (n, d_in, d_in), Q (d_out, d_out): N = A^n P A^n'
-    + Q^n of [Schon2005] Alg. 1 step 1 and A^l P A^l' + Q^l of step 2. The twin of
-    :func:`pfbench.filters.marginalized.sandwich`."""
+    """Per particle ``AP`` = A P and ``S`` = A P A' + Q, for A (n, d_out, d_in), P (n, d_in, d_in): N of
+    [Schon2005] Alg. 1 step 1, A^l P A^l' + Q^l of step 2. Twin of :func:`pfbench.filters.marginalized.sandwich`."""
     n = P.shape[0]
     d_out = A.shape[1]
     d_in = A.shape[2]
@@ -51,20 +38,13 @@ def sandwich(A, P, Q, AP, S):
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
 def condition(tn, tl, prior, fac, noise, xnew, cond, lin):
-    """[Schon2005] Alg. 1 steps 1-2 up to the time update, for d_n > 0, per particle: the lower
-    Cholesky factor ``L`` of N = A^n P A^n' + Q^n (pivots floored at 1e-300; the upper triangle
-    is neither written nor read); the sample x^n_t = f^n + A^n m + L z into ``xnew``; x^l_{t-1}
-    conditioned on it, ``mm`` = m + P A^n' N^-1 (x^n_t - f^n - A^n m) and ``Pm`` = P - P A^n'
-    N^-1 A^n P (by back substitution N^-1 (...) = L^-T z and V = L^-1 A^n P); and the x^l
-    transition into ``f``, ``A``: with ``corr`` (a cross-covariance Q^ln) f = f^l + T (x^n_t - f^n)
-    and A = A^l - T A^n, T = Q^ln (Q^n)^-1, else f^l and A^l. ``N`` and ``AP`` = A^n P come from
-    :func:`sandwich`; ``w`` (d_n,) and ``V`` (d_n, d_l) are scratch. The groups of
-    :mod:`pfbench.backends.mpf_work`: f^n, A^n in ``tn``, f^l, A^l in ``tl`` (:class:`~pfbench.backends.mpf_work.Affine`),
-    m, P in ``prior``, mm, Pm in ``cond`` (:class:`~pfbench.backends.mpf_work.Gaussians`), f, A in ``lin``; z, N, AP, L, w, V
-    in ``fac`` (:class:`~pfbench.backends.mpf_work.Conditioning`); T, corr in ``noise``. The twin of
-    :func:`pfbench.filters.marginalized.cholesky_batch`,
-    :func:`~pfbench.filters.marginalized.condition_nonlinear` and the decorrelation of
-    :func:`~pfbench.filters.marginalized.kalman_predict`."""
+    """[Schon2005] Alg. 1 steps 1-2 up to the time update, per particle, d_n > 0: L, the lower Cholesky
+    factor of N = A^n P A^n' + Q^n (pivots floored at 1e-300; N and AP = A^n P from :func:`sandwich`);
+    the sample x^n_t = f^n + A^n m + L z into ``xnew``; x^l conditioned on it into ``cond``: m + P A^n'
+    N^-1 (x^n_t - f^n - A^n m) and P - P A^n' N^-1 A^n P, by back substitution; the x^l transition into
+    ``lin``: f^l + T (x^n_t - f^n) and A^l - T A^n with ``noise.corr``, else f^l and A^l. Twin of
+    :func:`pfbench.filters.marginalized.cholesky_batch`, :func:`~pfbench.filters.marginalized.condition_nonlinear`
+    and the decorrelation of :func:`~pfbench.filters.marginalized.kalman_predict`."""
     fn, An, fl, Al, m, P, T, corr = tn.f, tn.A, tl.f, tl.A, prior.m, prior.P, noise.T, noise.corr
     z, N, AP, L, w, V = fac.z, fac.N, fac.APn, fac.L, fac.w, fac.V
     mm, Pm, f, A = cond.m, cond.P, lin.f, lin.A
@@ -127,11 +107,8 @@ def condition(tn, tl, prior, fac, noise, xnew, cond, lin):
 
 @njit(nogil=True, no_cpython_wrapper=True)
 def time_update(lin, cond, Q, AP, pred):
-    """The linear-Gaussian time update of [Schon2005] Alg. 1 step 2: the means ``pred.m`` = f + A m
-    and covariances ``pred.P`` = A P A' + Q per particle, for f, A of ``lin``
-    (:class:`~pfbench.backends.mpf_work.Affine`) and m, P of ``cond``
-    (:class:`~pfbench.backends.mpf_work.Gaussians`); ``AP`` (n, d_l, d_l) scratch. With d_n = 0
-    this is the whole prediction of the Kalman filter. The twin of
+    """The time update of [Schon2005] Alg. 1 step 2 (with d_n = 0, the Kalman prediction): ``pred`` =
+    f + A m, A P A' + Q per particle for f, A of ``lin`` and m, P of ``cond``; ``AP`` scratch. Twin of
     :func:`pfbench.filters.marginalized.time_update`."""
     f, A, m, P, m_pred, P_pred = lin.f, lin.A, cond.m, cond.P, pred.m, pred.P
     n = m.shape[0]
@@ -147,14 +124,10 @@ def time_update(lin, cond, Q, AP, pred):
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
 def kalman_update(obs, pred, meas, t, upd, ll, post):
-    """[Schon2005] Alg. 1 step 4 at step ``t``: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll``
-    (n,) and the measurement update of ``pred`` into ``post`` (means (n, d_l), covariances (n, d_l,
-    d_l), :class:`~pfbench.backends.mpf_work.Gaussians`), for h, C of ``obs``
-    (:class:`~pfbench.backends.mpf_work.Affine`) and y_t the row ``t`` of ``meas.yw``
-    (:class:`~pfbench.backends.mpf_work.Measurement`); h0 (n_y,), H (n_y, d_l), PH (d_l,) of
-    ``upd`` are scratch. The rest as for :func:`pfbench.filters.marginalized.kalman_update` (its
-    twin): the outputs whitened with ``W`` when ``whiten`` and processed one scalar at a time,
-    residuals taken about the fixed linearisation point ``m_pred``."""
+    """[Schon2005] Alg. 1 step 4 at step ``t``: log p(y_t | x^n_t, Y_{t-1}) per particle into ``ll`` and
+    the measurement update of ``pred`` into ``post``, for h, C of ``obs`` and y_t = ``meas.yw[t]``
+    (``upd``: scratch). Twin of :func:`pfbench.filters.marginalized.kalman_update`: outputs whitened
+    with ``W`` when ``whiten``, one scalar at a time, residuals about the linearisation point ``m_pred``."""
     h, C, m_pred, P_pred, m, P = obs.f, obs.A, pred.m, pred.P, post.m, post.P
     y, W, rvar, whiten, logdet = meas.yw[t], meas.W, meas.rvar, meas.whiten, meas.logdet
     h0, H, PH = upd.h0, upd.H, upd.PH
@@ -206,12 +179,9 @@ def kalman_update(obs, pred, meas, t, upd, ll, post):
 
 @njit(nogil=True, error_model="numpy", no_cpython_wrapper=True)
 def mixture_moments(wu, total, mom, xn, post, split, est, cov):
-    """[Schon2005] Alg. 1 step 5: the full-state mean ``est`` (n_x,) and covariance ``cov`` (n_x,
-    n_x) of the MPF posterior sum_i w_i delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, m_i, P_i of
-    ``post`` (:class:`~pfbench.backends.mpf_work.Gaussians`), given the weighted means of x^n
-    (``mom.mean_n``) and of the m_i (``mom.mean_l``): cov = sum_i w_i (d_i d_i' + [0 0; 0 P_i]);
-    ``mom.dev`` (n, n_x) scratch for the d_i; ``split`` the state indices. The twin of
-    :func:`pfbench.filters.marginalized.mixture_moments`."""
+    """[Schon2005] Alg. 1 step 5: mean ``est`` and covariance ``cov`` of the posterior sum_i w_i
+    delta(x^n_i) N(m_i, P_i), w_i = wu_i / total, from the weighted means in ``mom``: cov = sum_i w_i
+    (d_i d_i' + [0 0; 0 P_i]), ``mom.dev`` scratch. Twin of :func:`pfbench.filters.marginalized.mixture_moments`."""
     mean_n, mean_l, dev, m, P, idx_n, idx_l = mom.mean_n, mom.mean_l, mom.dev, post.m, post.P, split.n, split.l
     n = wu.shape[0]
     d_n = idx_n.shape[0]
@@ -246,10 +216,8 @@ def mixture_moments(wu, total, mom, xn, post, split, est, cov):
 
 @njit(nogil=True)
 def copy_into(src, dst):
-    """dst[...] = src for ``dst`` a float64 C array and ``src`` an array of its shape, of any dtype
-    and layout (a ValueError for another shape, not memory read out of bounds): one flat loop over
-    ``src`` as a C array (itself, the usual case, else a C copy). The inner axes are short (d_n,
-    d_l, n_y), so nested loops over them cost more than the copy itself."""
+    """dst[...] = src for a float64 C ``dst`` and ``src`` of its shape, any dtype and layout (a ValueError
+    for another shape): one flat loop, as the inner axes (d_n, d_l, n_y) are too short for nested ones."""
     if src.shape != dst.shape:
         raise ValueError("a structure function returned an array of another shape")
     s = np.ascontiguousarray(src).reshape(src.size)
@@ -260,7 +228,6 @@ def copy_into(src, dst):
 
 @njit(nogil=True, no_cpython_wrapper=True)
 def normals_into(rng, out):
-    """``out`` (float64, C order) filled with the numbers ``rng.standard_normal(out.shape)`` gives
-    (:func:`pfbench.backends.pcg64.fill_normals`): the MPF's x^n noise, a function of its own so that
-    the driver calls it by address instead of compiling the draws into itself."""
+    """``out`` (float64, C) filled as ``rng.standard_normal(out.shape)`` would: the MPF's x^n noise,
+    a function of its own so the driver calls the draws by address."""
     fill_normals(rng, out)

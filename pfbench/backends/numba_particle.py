@@ -1,57 +1,35 @@
 """The numba particle kernel: bootstrap, SIR, SIS and ASIR (and MultiPDF sub-filters) over all steps.
 
-The compiled twin of :func:`pfbench.backends.numpy_backend.run_group`: the same steps, random
-draws in the same order, and the same floating-point operations for everything that feeds back
-into the filter. This file is a template that :func:`pfbench.backends.kernels.build` runs per
-(model class, scheme, tile layout) with the model's compiled functions bound to ``_transition``
-and ``_log_likelihood`` and the scheme to ``_resample``/``_SCHEME``, so numba caches the whole
-kernel, model inlined, on disk. The caller draws the initial particles (the model's ``initial``).
+The compiled twin of :func:`pfbench.backends.numpy_backend.run_group`: the same steps, draws in the
+same order and floating-point operations for everything that feeds back into the filter. The
+``particle`` family's template: :func:`pfbench.backends.kernels.build` runs it per (model class,
+scheme, tile layout) with the model bound to ``_transition``, ``_log_likelihood`` and the scheme to
+``_resample``/``_SCHEME``. The caller draws the initial particles (the model's ``initial``).
 
-Fused passes (per step and filter; each particle is touched three times)
--------------------------------------------------------------------------
+Fused passes per step and filter (each particle is touched three times):
 A. draw + propagate + log-likelihood + a = lw + ll + running max, in tiles of ``_TILE`` particles
-   (:func:`_pass_a`: the model's vectorised functions run on a tile view, so a model is written
-   once; tile-by-tile draws are the numbers one big draw gives);
-B. w = exp(a - max) in place of the log-weights, then the running sum (the cdf) with the weighted
-   moments and sum w^2 beside it (:func:`pfbench.backends.numba_weights.block_weights`);
-C. systematic and stratified: a merge that writes the resampled particles straight into the other
-   particle buffer (:func:`pfbench.backends.numba_resampling.merge_gather`; the buffers swap);
-   multinomial and residual: indices (``_resample``), then a gather;
-D. ``estimate="post"`` only, at a step that resampled: the unweighted moments of the resampled
-   particles replace ``est``/``var`` ([MultiPDF] Alg. 1 step 6;
-   :func:`pfbench.backends.numba_weights.block_moments`).
+   (:func:`_pass_a`: the model's vectorised functions on a tile view, the draws one big draw gives);
+B. w = exp(a - max) over the log-weights, the running sum (cdf), moments and sum w^2
+   (:func:`pfbench.backends.numba_weights.block_weights`);
+C. systematic/stratified: a merge straight into the other particle buffer
+   (:func:`pfbench.backends.numba_resampling.merge_gather`); multinomial/residual: indices, a gather;
+D. ``estimate="post"``, at a step that resampled: the unweighted moments replace ``est``/``var``
+   ([MultiPDF] Alg. 1 step 6; :func:`pfbench.backends.numba_weights.block_moments`).
 
 Loops over a block or a tile run over views that start at 0 (``la[s:e]``, then ``las[i]``), so
-LLVM can drop numba's negative-index test; indices read from memory are made unsigned for the same
-reason. Only pass A inlines the model: passes B and C are compiled once for every model and
-scheme, and a model's schemes share one pass A (:attr:`pfbench.backends.kernels.Family.shared`).
-The driver, the loop over steps, filters and blocks, calls the passes through their native entry
-points (:mod:`pfbench.backends.native_call`), so it does not compile them again, and a cold kernel
-compiles pass A in a helper process meanwhile (:mod:`pfbench.backends.compile_helper`).
+LLVM can drop numba's negative-index test. Only pass A inlines the model, and a model's schemes share
+it (:attr:`pfbench.backends.kernels.Family.shared`); passes B and C serve every model and scheme. The
+driver (steps, filters, blocks) calls the passes by address (:mod:`pfbench.backends.native_call`), so
+it does not compile them again.
 
-Stream blocks and threads
--------------------------
-Particles are split into stream blocks ``[bounds[b], bounds[b + 1])`` of equal size
-(:func:`pfbench.backends.numpy_backend.block_bounds`: one block up to N_p = ``BLOCK`` = 8192, else
-a multiple of 16 blocks, so 2, 4, 8 or 16 threads get equal shares). With one block everything is
-drawn from the filter's own generator in the single-stream order. With B > 1 blocks, block b draws
-its initial particles (:func:`pfbench.backends.numpy_backend.draw_initial`), its transition noise
-and its stratified uniforms from its own generator ``brngs[b]``; systematic's one uniform and the
-multinomial/residual draws come from the filter's generator. Per-block partial results are
-reduced in block order by one thread, and the cdf of block b is ``offset_b + running sum within
-b``, so the numbers depend on (seed, N_p, block layout) only: :func:`run_group` (serial) and
-:func:`run_group_parallel` (the same function compiled with ``parallel=True``, its block loops
-``prange``) agree bit for bit for any thread count.
+Stream blocks (:mod:`pfbench.backends.numpy_backend`): per-block results are reduced in block order,
+so :func:`run_group` and :func:`run_group_parallel` (the same function compiled with
+``parallel=True``, its block loops ``prange``) agree bit for bit for any thread count.
 
-float32
--------
-The particle buffers are float32 and the noise is drawn as float32 (NumPy's float32 ziggurat,
-stored exactly in the float64 tile the model gets); the model computes in float64 on the stored,
-rounded states, and its results are rounded to float32 when stored; weights, log-likelihood sums
-and moments stay float64. Why not float32 arithmetic: numba types the models' Python float
-literals and float64 parameters as float64 whatever the array dtype, where NumPy >= 2 keeps
-float32, so the backends would differ. float32 buys half the particle memory and a float32 draw,
-and costs the tile conversions.
+float32 particles: float32 buffers and draws (stored exactly in the float64 tiles the model gets);
+the model computes in float64 and its results are rounded when stored; weights and moments stay
+float64. Not float32 arithmetic: numba types the models' float literals and float64 parameters as
+float64 whatever the array dtype, where NumPy >= 2 keeps float32, so the backends would differ.
 """
 import numba as _numba
 import numpy as _np
@@ -85,9 +63,8 @@ _STRATIFIED = int(_Scheme.STRATIFIED)
 #: L1/L2, and the model's result arrays, allocated per tile, are a fixed cost per tile
 _TILE = 1024
 _prange = _numba.prange
-#: pass A called through its address (:mod:`pfbench.backends.native_call`)
+#: passes A, B and C called through their addresses (:mod:`pfbench.backends.native_call`)
 _call_a = _caller(7)
-#: passes B and C (systematic/stratified) called through their addresses
 _call_b = _caller(2)
 _call_c = _caller(3)
 
@@ -96,12 +73,10 @@ _b = _binding()
 _njit = _b.jit
 _transition = _b.model("transition")
 _log_likelihood = _b.model("log_likelihood")
-#: the scheme's resampling kernel (``any_scheme`` when the scheme is chosen at run time)
 _resample = _b.resample
-#: the resampling scheme code (-1: chosen at run time through ``_resample``)
+#: the resampling scheme code (-1: chosen at run time, ``_resample`` is ``any_scheme``)
 _SCHEME = _b.scheme
-#: True when the model has one state and one noise component, whose tiles are handed to the
-#: model typed column-major (:func:`_column_major`)
+#: the model's tiles are typed column-major (:func:`_column_major`; one state, one noise component)
 _F_TILES = _b.f_tiles
 
 
@@ -111,10 +86,8 @@ def _normals(rng, k, n_noise, like):  # pragma: no cover - compiled through the 
 
 @_overload(_normals)
 def _normals_impl(rng, k, n_noise, like):
-    """(k, n_noise) standard normals drawn in the particle dtype (float32: NumPy's float32
-    ziggurat), the numbers ``rng.standard_normal`` gives, as a float64 array for the model
-    (:func:`pfbench.backends.pcg64.fill_normals`; float32 draws are stored exactly in float64, so
-    there is no float32 array to convert)."""
+    """(k, n_noise) standard normals drawn in the particle dtype, as ``rng.standard_normal`` gives
+    them, in a float64 array for the model (float32 draws are exact in float64)."""
     fill = _pcg64.fill_normals_f32 if like.dtype == _numba.types.float32 else _pcg64.fill_normals
 
     def impl(rng, k, n_noise, like):
@@ -126,13 +99,9 @@ def _normals_impl(rng, k, n_noise, like):
 
 @_intrinsic
 def _column_major(typingctx, a):
-    """The same (n, 1) C-contiguous array typed column-major ('F'); no copy.
-
-    An (n, 1) contiguous array is both row- and column-major, but numba lowers an array expression
-    over a C array as two nested loops with the trailing axis (length 1) innermost, and LLVM
-    vectorises inner loops only, so the model's arithmetic would run one particle at a time. Typed
-    'F', the rows are the inner loop. Only valid for a trailing axis of length 1.
-    """
+    """The same (n, 1) C-contiguous array typed column-major ('F'); no copy. numba lowers an array
+    expression over a C array with the trailing axis (length 1) innermost, and LLVM vectorises inner
+    loops only; typed 'F', the rows are the inner loop. Only valid for a trailing axis of length 1."""
     if not isinstance(a, _types.Array) or a.ndim != 2 or a.layout != "C":
         return None
     ret = a.copy(layout="F")
@@ -149,8 +118,7 @@ def _tile_buffer(xs, k):  # pragma: no cover - compiled through the overload bel
 
 @_overload(_tile_buffer)
 def _tile_buffer_impl(xs, k):
-    """float32 particles: a float64 (tile, n_x) buffer for the tiles the model sees, allocated once
-    per pass. float64 particles need none (the model sees the particle buffer itself): ``xs``."""
+    """A float64 (tile, n_x) buffer for the model's tiles (float32 particles), once per pass; ``xs`` for float64."""
     if xs.dtype == _numba.types.float64:
         return lambda xs, k: xs
     return lambda xs, k: _np.empty((min(k, _TILE), xs.shape[1]))
@@ -162,8 +130,7 @@ def _tile64(xs, s, e, buf):  # pragma: no cover - compiled through the overload 
 
 @_overload(_tile64)
 def _tile64_impl(xs, s, e, buf):
-    """The states of particles [s, e) as float64 for the model: a view of ``xs`` (float64), or
-    converted into ``buf`` (float32)."""
+    """The states of particles [s, e) as float64: a view of ``xs``, or (float32) converted into ``buf``."""
     if xs.dtype == _numba.types.float64:
         return lambda xs, s, e, buf: xs[s:e]
 
@@ -183,8 +150,7 @@ def _typed_as_tiles(a):  # pragma: no cover - compiled through the overload belo
 
 @_overload(_typed_as_tiles)
 def _typed_as_tiles_impl(a):
-    """A C-contiguous float32-path buffer typed as the kernel types its tiles: column-major
-    (:func:`_column_major`) when ``_F_TILES``, so the model sees one array type."""
+    """A float32-path buffer typed as the tiles (column-major when ``_F_TILES``): one array type for the model."""
     if _F_TILES:
         return lambda a: _column_major(a)
     return lambda a: a
@@ -197,10 +163,8 @@ def _store(xd, xn, buf):  # pragma: no cover - compiled through the overload bel
 
 @_overload(_store)
 def _store_impl(xd, xn, buf):
-    """Store the new states ``xn`` into ``xd`` (the tile's particles, a view) and return them as
-    stored, in float64, for the log-likelihood: ``xn`` itself (float64), or rounded to float32 and
-    back into ``buf`` (typed as the tiles, so it has the type :func:`_unstored` gives: one
-    likelihood call site)."""
+    """Store the new states ``xn`` into ``xd`` (the tile's particles) and return them as stored, in
+    float64: ``xn`` itself, or (float32) rounded into ``buf``, typed as :func:`_unstored` returns."""
     if xd.dtype == _numba.types.float64:
         def impl(xd, xn, buf):
             if xd.shape[1] == 1:  # no inner loop of one iteration
@@ -238,8 +202,8 @@ def _unstored(xs, xn, buf):  # pragma: no cover - compiled through the overload 
 
 @_overload(_unstored)
 def _unstored_impl(xs, xn, buf):
-    """ASIR's first stage: the new states, not stored, for the log-likelihood, with the type
-    :func:`_store` returns: ``xn`` (float64 particles), or copied unrounded into ``buf`` (float32)."""
+    """ASIR's first stage: the new states, not stored, typed as :func:`_store` returns them (float32:
+    copied unrounded into ``buf``)."""
     if xs.dtype == _numba.types.float64:
         return lambda xs, xn, buf: xn
 
@@ -255,12 +219,8 @@ def _unstored_impl(xs, xn, buf):
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _pass_a(p, brng, y, u, work, settings, step):
     """Pass A on stream block ``step.b`` of filter ``step.g`` at step ``step.t``: draw + propagate +
-    log-likelihood + a = lw + ll into the log-weight row; returns max a.
-
-    ``step.first`` (ASIR first stage): zero noise, the states are not stored and the cleaned
-    log-likelihoods go to ASIR's ``lam_all`` row; ``step.asir`` (second stage): ll - lam. While
-    every lw is -log N_p (after resampling) the kept log-weights are not read.
-    """
+    log-likelihood + a = lw + ll into the log-weight row; returns max a. ``step.first`` (ASIR's first
+    stage): zero noise, states not stored, log-likelihoods into ``lam_all``; ``step.asir``: ll - lam."""
     t = step.t
     g = step.g
     yt = y[t]
@@ -295,9 +255,8 @@ def _pass_a(p, brng, y, u, work, settings, step):
             xn = _transition(_column_major(_tile64(xs, s, e, bin_)), ut, t, _column_major(noise), p)
         else:
             xn = _transition(_tile64(xs, s, e, bin_), ut, t, noise, p)
-        # one type in both branches (a float32 buffer typed as the tiles), so one likelihood call
-        # site: a reassigned ``xn`` would unify the model's output and the buffer to an any-layout
-        # array, which nothing vectorises, and every call site is another inlined copy to compile
+        # one type in both branches, so one likelihood call site (each is an inlined copy of the
+        # model), and no any-layout array that a reassigned ``xn`` would unify to
         if first:
             xl = _unstored(xs, xn, bout)
         else:
@@ -331,7 +290,7 @@ _pass_a = _b.shared("_pass_a", _pass_a)  # compiled once per model, for every sc
 @_register_jitable
 def _moments(work, out, total, g, t):
     """est[g, t] and var[g, t] from the per-block sums of w x and w (x - x_0)^2 (x_0: the filter's
-    particle 0, the shift the blocks used), added in block order, over the total weight ``total``."""
+    particle 0), added in block order, over ``total``."""
     xs = work.xs[work.gstate[0, g], g]
     bsx, bsxx = work.bmom[0], work.bmom[1]
     nb = work.bounds.shape[0] - 1
@@ -349,8 +308,7 @@ def _moments(work, out, total, g, t):
 
 @_register_jitable
 def _max(a, m):
-    """max(m, max(a)) for ``a`` without NaN: four running maxima, so the comparisons do not wait
-    on each other (a max is exact in any order; LLVM does not vectorise the reduction itself)."""
+    """max(m, max(a)) for ``a`` without NaN, in four running maxima that do not wait on each other."""
     m0 = m
     m1 = m
     m2 = m
@@ -377,18 +335,12 @@ def _max(a, m):
 
 
 def _run_group(p, rng, brngs, y, u, out, work, settings):
-    """Run a group of G independent filters over all steps (random streams in documented order).
+    """Run a group of G independent filters over all steps (random streams in the documented order).
 
-    ``rng``: the group's generator; ``brngs``: a list of the B block generators (``[rng]`` when
-    B = 1); ``out``, ``work``, ``settings``: :class:`~pfbench.backends.particle_work.Outputs`,
-    :class:`~pfbench.backends.particle_work.Work` (the initial particles, the model's ``initial``
-    drawn by the host, come in the first particle buffer) and
-    :class:`~pfbench.backends.particle_work.Settings`. The method is a
-    :class:`~pfbench.methods.Method` code of the particle family (MultiPDF runs bootstrap
-    sub-filters). ``settings.post`` (``estimate="post"``): at a step that resamples, ``est``/``var``
-    are overwritten with the unweighted moments of the resampled particles (pass D); a run-time
-    flag, so one compilation serves both and the default path only tests it at the steps that
-    resample. Passes A, B and C are called through their native entry points (``settings``).
+    ``rng``: the group's generator; ``brngs``: the B block generators (``[rng]`` when B = 1); ``out``,
+    ``work`` (the initial particles in the first buffer), ``settings``: the groups of
+    :mod:`pfbench.backends.particle_work`. ``settings.post`` is a run-time flag, so one compilation
+    serves both estimates and the default tests it only at the steps that resample.
     """
     x = out.x
     G = x.shape[0]

@@ -10,29 +10,20 @@ all steps, drawing every random number from one ``numpy.random.Generator`` in th
    b. transition noise, ``rng.standard_normal((n, n_noise), dtype=particle dtype)``;
    c. the resampling draws, if the filter resamples at this step.
 
-Stream blocks: particles are split into :func:`n_blocks` blocks of equal size (:func:`block_bounds`):
-one up to N_p = :data:`BLOCK`, else a multiple of 16 blocks of at most BLOCK particles, so that
-2, 4, 8 or 16 threads get equal work. With one block the order above is all there is. With B > 1 blocks, block b's own generator
-(:func:`block_streams`) draws, in this order, block b's initial particles of filter 0, 1, ..., G-1
-(:func:`draw_initial`), then per step the transition noise of block b (and the stratified uniforms
-of output block b), block after block; systematic's one uniform and the multinomial and residual
-draws come from the filter's generator, which the initial draw leaves untouched. Every block
-stream is its own, so the blocks' initial draws can run on several threads in any order
-(:func:`draw_initial`, :func:`run_shares`). Weight running sums restart per block and add
-the block's offset, and block totals are added in block order, so the numbers depend on the seed and
-N_p, never on how many threads run the numba kernel.
-
-The numba backend (:mod:`pfbench.backends.numba_particle`) follows the same order with the same
-operations, which is what makes the two backends agree under common random numbers.
+Stream blocks (:func:`block_bounds`): one up to N_p = :data:`BLOCK`, else a multiple of 16 equal
+blocks, so 2, 4, 8 or 16 threads get equal work. With B > 1 blocks, block b's own generator
+(:func:`block_streams`) draws block b's initial particles of every filter, then per step its
+transition noise (and the stratified uniforms of output block b); systematic's one uniform and the
+multinomial and residual draws come from the filter's generator. Running sums restart per block and
+add the block's offset, and block totals are added in block order, so the numbers depend on the seed
+and N_p, never on the thread count. The numba kernel (:mod:`pfbench.backends.numba_particle`) follows
+the same order with the same operations, so the two backends agree under common random numbers.
 
 Methods (:class:`pfbench.methods.Method` codes, shared with the numba kernel): bootstrap
 (resample every step, [Embedded] Alg. 1; [MultiPDF] Alg. 1), SIR (resample when N_eff <
 threshold, [MultiPDF] eq. 8; [Thesis] Alg. 3), SIS (never resample, [Thesis] Alg. 2), ASIR
 (auxiliary SIR, [Thesis] Alg. 6: first-stage weights p(y_t | mu_t^i) at mu_t^i = f(x_{t-1}^i)
-with zero noise).
-
-:func:`weigh` is the NumPy backend's one log-sum-exp weighting; every NumPy filter driver
-(particle, marginalized, guided) calls it.
+with zero noise). :func:`weigh` is the one log-sum-exp weighting of every NumPy filter driver.
 """
 from __future__ import annotations
 
@@ -55,16 +46,10 @@ def valid_log_likelihood(ll) -> np.ndarray:
 
 
 def weigh(lw: np.ndarray, ll: np.ndarray, blocks=None):
-    """Combine normalised log-weights with log-likelihoods, log-sum-exp style (the NumPy twin of
-    :func:`pfbench.backends.numba_weights.weigh`).
-
-    Returns (wu, cdf, m, total, degenerate): unnormalised weights exp(a - max a), their
-    running sum, the max, the sum, and whether every likelihood was zero (then the previous
-    weights are kept). The normalised log-weights are only needed when the filter does not
-    resample (:func:`normalised_log_weights`), so they are not computed here. ``blocks`` (slices):
-    the running sum restarts per stream block and adds the block's offset (the particle kernel's
-    order); None: one block.
-    """
+    """Combine normalised log-weights with log-likelihoods, log-sum-exp style (twin of
+    :func:`pfbench.backends.numba_weights.weigh`). Returns (wu, cdf, m, total, degenerate): exp(a - max a),
+    its running sum (restarting per stream block of ``blocks``, slices; None: one block), the max, the
+    sum, and whether every likelihood was zero (then the previous weights are kept)."""
     a = lw + ll
     m = a.max()
     degenerate = not (m > -np.inf)
@@ -103,12 +88,9 @@ def block_bounds(n: int, block: int = BLOCK) -> np.ndarray:
 
 
 def block_streams(rng, seed_seq, n: int, block: int = BLOCK) -> list:
-    """The stream-block generators of a filter of ``n`` particles (see the module docstring).
-
-    One block: ``[rng]`` (the filter's own stream). B > 1 blocks: block b draws from
-    ``default_rng(SeedSequence(entropy, spawn_key=seed_seq.spawn_key + (0x5EB10C, b)))``, derived from
-    the filter's SeedSequence without spawning from (mutating) it. Shared by both backends.
-    """
+    """The stream-block generators of a filter of ``n`` particles: ``[rng]`` for one block, else
+    ``default_rng(SeedSequence(entropy, spawn_key=seed_seq.spawn_key + (0x5EB10C, b)))`` for block b,
+    derived from the filter's SeedSequence without spawning from (mutating) it."""
     nb = n_blocks(n, block)
     if nb == 1:
         return [rng]
@@ -125,9 +107,8 @@ def _blocks(n: int, block: int):
 
 
 def _block_weights(a: np.ndarray, m: float, blocks):
-    """w = exp(a - m) and the cdf as block offset + running sum within the block (the numba kernel's
-    order), and the total as the block sums added in block order. The exponential is
-    :func:`pfbench.backends.fastexp.exp_array`, the bits of the numba kernels' vectorised exp."""
+    """w = exp(a - m) (:func:`pfbench.backends.fastexp.exp_array`, the numba kernels' bits), the cdf as
+    block offset + running sum within the block, and the block sums added in block order."""
     wu = exp_weights(a - m)
     cdf = np.empty_like(wu)
     total = 0.0
@@ -138,9 +119,8 @@ def _block_weights(a: np.ndarray, m: float, blocks):
 
 
 def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
-    """Ancestor indices: systematic/stratified on the block cdf (stratified uniforms of output block
-    b from block stream b; one block: the filter's stream, as :mod:`pfbench.resampling`), the other
-    schemes from the filter's stream on the sequential running sum."""
+    """Ancestor indices: systematic/stratified on the block cdf (stratified uniforms of block b from
+    stream b), the other schemes as :mod:`pfbench.resampling` on the filter's stream."""
     n = wu.size
     if len(blocks) == 1 or scheme not in (resampling.Scheme.SYSTEMATIC, resampling.Scheme.STRATIFIED):
         return resampling.get(scheme)(wu, rng)
@@ -153,20 +133,11 @@ def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
 
 
 def draw_initial(initial, p, rng, x, brngs=None, n_threads: int | None = 1) -> None:
-    """The initial particles of a group into ``x`` (G, N_p, n_x), in the documented draw order (step 1;
-    both backends call this, so they start from the same particles).
-
-    One block (``brngs`` None or of length 1): x[g] = initial(rng, N_p, p) for g = 0, 1, ..., G-1,
-    from the group's stream. B > 1 blocks: block b of every filter, x[g, block b] =
-    initial(brngs[b], size of block b, p) for g = 0, ..., G-1, from block b's own stream, so a
-    block's particles depend on its stream alone and the blocks can be drawn in any order.
-
-    Why per block: at large N_p the draw and the first touch of ``x`` (the operating system zero-fills
-    every fresh page) are a large part of a short run; per-block streams let ``n_threads`` threads
-    (None: :func:`pfbench.procs.free_cores`) share them, each drawing a contiguous run of blocks,
-    the numbers still those of the serial draw. NumPy's generators and ufuncs release the GIL
-    while they fill an array, so the threads overlap; a model's ``initial`` that holds it only
-    loses the overlap. Block b spans ``[(b N_p) // B, ((b + 1) N_p) // B)``, :func:`block_bounds`.
+    """The initial particles of a group into ``x`` (G, N_p, n_x), in the documented draw order (both
+    backends call this). One block (``brngs`` None or of length 1): x[g] = initial(rng, N_p, p). B > 1
+    blocks: x[g, block b] = initial(brngs[b], size of block b, p), so a block depends on its own
+    stream alone and ``n_threads`` threads (None: :func:`pfbench.procs.free_cores`) can share the draw
+    and the first touch of ``x``, a large part of a short run at large N_p (NumPy releases the GIL).
     """
     G, n = x.shape[0], x.shape[1]
     nb = 1 if brngs is None else len(brngs)
@@ -190,8 +161,7 @@ _POOL_LOCK = threading.Lock()
 
 
 def _helpers():
-    """The process's helper-thread pool (a new one after a fork: a child has none of the parent's
-    threads)."""
+    """The process's helper-thread pool (a new one after a fork, which leaves the child none)."""
     global _POOL
     with _POOL_LOCK:
         if _POOL is None or _POOL[0] != os.getpid():
@@ -201,11 +171,9 @@ def _helpers():
 
 
 def run_shares(share, n_items: int, n_threads: int | None = 1) -> None:
-    """``share(lo, hi)`` over items ``0 .. n_items - 1`` split into k = min(``n_threads``, ``n_items``)
-    contiguous runs (None: :func:`pfbench.procs.free_cores`), the first on this thread and the others
-    on helper threads; returns when all are done, raising the first error. The runs are the ones a
-    static schedule of k numba threads gives the block loops, so a block's pages are first touched
-    on the thread that works on them."""
+    """``share(lo, hi)`` over ``0 .. n_items - 1`` in k = min(``n_threads``, ``n_items``) contiguous runs
+    (None: :func:`pfbench.procs.free_cores`), the first on this thread; raises the first error. The runs
+    match a static schedule of k numba threads, so pages are first touched by the thread that uses them."""
     if n_threads is None:
         from ..procs import free_cores
 
@@ -228,11 +196,10 @@ def run_shares(share, n_items: int, n_threads: int | None = 1) -> None:
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
               est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None, *, brngs=None,
               n_threads=None, block: int | None = None, estimate: str = "pre") -> None:
-    """NumPy twin of the numba ``run_group``; fills the output arrays in place (``hist_x``/``hist_w``:
-    the weighted particles of every step, when given with M rows). ``brngs``: the stream-block
-    generators (:func:`block_streams`; None: one block); ``n_threads`` is ignored. ``estimate``:
-    ``pre`` (``est``/``var``: the weighted moments before resampling) or ``post`` (at a step that
-    resamples, the unweighted moments of the resampled particles; see :func:`pfbench.run_filter`)."""
+    """Run G filters over all steps, filling the outputs in place (``hist_x``/``hist_w``: the weighted
+    particles of every step, when given with M rows). ``brngs``: :func:`block_streams` (None: one
+    block); ``n_threads`` is ignored. ``estimate``: ``pre`` (weighted moments before resampling) or
+    ``post`` (at a step that resamples, the resampled particles' moments; :func:`pfbench.run_filter`)."""
     store = hist_x is not None and hist_x.shape[1] > 0
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]

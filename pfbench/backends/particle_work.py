@@ -1,10 +1,9 @@
 """The particle kernel's arguments as named groups (:mod:`pfbench.backends.numba_particle`).
 
-The driver takes eight arguments: the parameters, the group's generator and block generators,
-``y``, ``u`` and three groups, :class:`Outputs`, :class:`Work` and :class:`Settings`; each pass it
-calls by address takes these groups and a :class:`Step` of scalars. numba types a named tuple by
-its fields, so the argument types of every call by address are ``numba.typeof`` of the very
-objects the host passes (:func:`pass_types`): the order of the fields is written once, here.
+The driver takes the parameters, the generators, ``y``, ``u``, :class:`Outputs`, :class:`Work` and
+:class:`Settings`; each pass it calls by address takes these groups and a :class:`Step`. numba types a
+named tuple by its fields, so a call's argument types are ``numba.typeof`` of the objects the host
+passes (:func:`pass_types`), the field order written once, here.
 """
 from __future__ import annotations
 
@@ -17,9 +16,9 @@ from .numba_resampling import ESTIMATE_TILE
 
 
 class Outputs(NamedTuple):
-    """What a run of G filters fills: the final particles ``x`` (G, N_p, n_x); ``est``, ``var``
-    (G, M, n_x); ``ess``, ``inc``, ``resampled``, ``degen`` (G, M); ``hist_x`` (G, M, N_p, n_x) and
-    ``hist_w`` (G, M, N_p), the weighted particles of every step (second dimension 0: none)."""
+    """What a run of G filters fills: final particles ``x`` (G, N_p, n_x); ``est``, ``var`` (G, M, n_x);
+    ``ess``, ``inc``, ``resampled``, ``degen`` (G, M); ``hist_x`` (G, M, N_p, n_x), ``hist_w`` (G, M,
+    N_p): every step's weighted particles (second dimension 0: none)."""
 
     x: np.ndarray
     est: np.ndarray
@@ -57,10 +56,9 @@ class Work(NamedTuple):
 
 
 class Settings(NamedTuple):
-    """A run's constants: the model's noise count; :class:`~pfbench.methods.Method` and
-    :class:`~pfbench.resampling.Scheme` codes; the SIR threshold (a particle count); ``post``
-    (``estimate="post"``); the native entry addresses of passes A, B and C
-    (:mod:`pfbench.backends.native_call`; 0 for a pass the kernel never calls)."""
+    """A run's constants: the noise count; :class:`~pfbench.methods.Method` and :class:`~pfbench.resampling.Scheme`
+    codes; the SIR threshold (particles); ``post`` (``estimate="post"``); the entry addresses of passes
+    A, B and C (0 for a pass never called)."""
 
     n_noise: int
     method: int
