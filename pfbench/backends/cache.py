@@ -305,9 +305,9 @@ _INSTALLED = False
 
 
 def install() -> None:
-    """Put the package-keyed locator first in numba's list, use the constant-message shape error
-    (:func:`constant_shape_error`), keep conditional moves in loops (:mod:`pfbench.backends.codegen`)
-    and defer interrupts during compiles (:mod:`pfbench.backends.interrupts`) (idempotent)."""
+    """Put the package-keyed locator first in numba's list, keep conditional moves in loops
+    (:mod:`pfbench.backends.codegen`) and defer interrupts during compiles
+    (:mod:`pfbench.backends.interrupts`) (idempotent)."""
     global _INSTALLED
     if _INSTALLED:
         return
@@ -317,34 +317,12 @@ def install() -> None:
     classes = impl._locator_classes
     if not any(getattr(c, "__name__", "") == "PackageKeyedLocator" for c in classes):
         classes.insert(0, _locator_class())
-    constant_shape_error()
     from .codegen import keep_selects
     from .interrupts import defer_during_compiles
 
     keep_selects()
     defer_during_compiles()
     _INSTALLED = True
-
-
-def constant_shape_error() -> bool:
-    """Make numba's CPU target raise array-assignment shape mismatches with its generic target's
-    constant message: the CPU one formats both shapes, unicode code compiled into every cold kernel
-    for a branch only a bug takes. Returns whether it did (False: another numba layout, no change)."""
-    try:
-        from numba.core.typing.templates import builtin_registry
-        from numba.np import arrayobj
-    except ImportError:  # pragma: no cover - another numba layout
-        return False
-    key = getattr(arrayobj, "raise_with_shape_context", None)
-    generic = getattr(arrayobj, "ol_raise_with_shape_context_generic", None)
-    if key is None or generic is None:  # pragma: no cover - another numba layout
-        return False
-    done = False
-    for template in builtin_registry.functions:
-        if getattr(template, "key", None) is key and getattr(template, "metadata", {}).get("target") == "CPU":
-            template._overload_func = staticmethod(generic)
-            done = True
-    return done
 
 
 def njit(*args, **options):

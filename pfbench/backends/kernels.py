@@ -113,6 +113,8 @@ def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> ty
     with _LOCK:
         if key in _MODULES:
             return _MODULES[key]
+        if disk_cacheable(cls):  # an unusable cache directory is one line naming it, before any compile
+            cache.check_cache_dir()
         _CLASSES[(cls.__module__, cls.__qualname__)] = cls  # a compile helper finds it by name
         digest = _source_fingerprint(cls, fam).hex()[:16]
         safe = "".join(c if c.isalnum() else "_" for c in f"{cls.__module__}_{cls.__qualname__}")

@@ -1,8 +1,8 @@
 """Time to first result: what a call compiles and imports (no wall-clock assertions).
 
 Cold starts are dominated by numba compiling; these tests pin the structural choices that keep it
-small: array-assignment shape errors without the formatted (unicode) message, and the CLI
-importing a subsystem only when its command runs.
+small: the CLI importing a subsystem only when its command runs, and the kernel modules sharing
+what does not depend on the scheme or the model.
 """
 import subprocess
 import sys
@@ -15,21 +15,9 @@ from pfbench.backends import cache
 from pfbench.backends.kernels import build
 
 
-def test_shape_error_path_uses_the_constant_message():
-    # Mutation caught: dropping constant_shape_error() from cache.install() (numba's CPU overload
-    # would then format both shapes, compiling seconds of unicode code per process).
-    from numba.core.typing.templates import builtin_registry
-    from numba.np import arrayobj
-
-    cache.install()
-    cpu = [t for t in builtin_registry.functions
-           if getattr(t, "key", None) is arrayobj.raise_with_shape_context and t.metadata.get("target") == "CPU"]
-    assert cpu and all(t._overload_func is arrayobj.ol_raise_with_shape_context_generic for t in cpu)
-
-
 def test_shape_mismatch_still_raises_value_error():
-    # The check itself stays: a mismatched assignment in compiled code raises, only the message is
-    # constant. Mutation caught: replacing the overload by one that does not raise.
+    # A mismatched assignment in compiled code raises (numba's own check; pfbench patches nothing
+    # there). Mutation caught: an install() that replaces the check by one that does not raise.
     @numba.njit(cache=False)
     def assign(dst, src):
         dst[:] = src
@@ -38,7 +26,7 @@ def test_shape_mismatch_still_raises_value_error():
     dst = np.zeros((3, 2))
     assign(dst, np.ones((3, 2)))
     assert np.all(dst == 1.0)
-    with pytest.raises(ValueError, match="different size"):
+    with pytest.raises(ValueError, match="cannot assign slice"):
         assign(dst, np.ones((4, 2)))
 
 
@@ -72,7 +60,7 @@ def test_kernel_modules_share_what_does_not_depend_on_the_scheme_or_the_model():
     compiles its own pass A, and the opposite fault: a pass A shared across models or tile layouts,
     which would run one model's (or layout's) code for another."""
     import pfbench
-    from pfbench.backends import numba_backend, numba_resampling, numba_weights
+    from pfbench.backends import numba_resampling, numba_weights
 
     ob1 = pfbench.models.get("ob1")
     mods = [build("particle", ob1, s) for s in ("systematic", "multinomial", None)]
