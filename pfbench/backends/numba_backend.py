@@ -65,8 +65,8 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     pcg64.check_generators([rng, *brngs])  # the kernel reads PCG64's state struct directly
     mod = build("particle", model, scheme)
     work = work_arrays(x, bounds.shape[0] - 1, bounds, int(method))
-    # the NumPy backend's draw, into the kernel's first particle buffer (per block on the run's threads)
-    draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0], brngs, n_threads)
+    # the NumPy backend's draw, into the kernel's first particle buffer
+    draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0], brngs)
     out = Outputs(x, est, var, ess, inc, resampled, degen, hist_x, hist_w)
     settings = Settings(int(model.n_noise), int(method), int(scheme), float(ess_threshold),
                         Estimate.parse(estimate) == Estimate.POST, 0, 0, 0)
@@ -76,20 +76,20 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
         import numba
 
-        key = (driver, numba.typeof(p), numba.typeof(work), y.dtype, u.dtype)
-        addresses = _PASS_ADDRESSES.get(key)
-        if addresses is None:
+        args = (p, rng, brngs, y, u, out, work, settings)
+
+        def find():
             step = Step()
             calls = [("_pass_a", pass_types(p, rng, y, u, work, settings, step), numba.types.float64),
                      ("_pass_b", pass_types(work, step), numba.types.none)]
             if mod._SCHEME in (-1, Scheme.SYSTEMATIC, Scheme.STRATIFIED):  # the merge branch (-1: any)
                 calls.append(("_merge_gather", pass_types(work, settings, step), numba.types.none))
-            addresses = native_addresses(model, "particle", mod, driver, (p, rng, brngs, y, u, out, work, settings),
-                                         calls, here=("_pass_b", "_merge_gather"), f_tiles=column_major_tiles(model))
-            addresses = _PASS_ADDRESSES.setdefault(key, addresses + [0] * (3 - len(addresses)))
-        # an index scheme's kernel never calls the merge: its address is 0
-        args = (p, rng, brngs, y, u, out, work, settings._replace(pass_a=addresses[0], pass_b=addresses[1],
-                                                                   merge=addresses[2]))
+            found = native_addresses(model, "particle", mod, driver, args, calls, here=("_pass_b", "_merge_gather"),
+                                     f_tiles=column_major_tiles(model))
+            return found + [0] * (3 - len(found))  # an index scheme's kernel never calls the merge
+
+        a, b, c = (int(v) for v in _call_addresses(driver, args, find))
+        args = args[:-1] + (settings._replace(pass_a=a, pass_b=b, merge=c),)
         if parallel:
             k = min(int(n_threads or free_cores()), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
@@ -100,11 +100,6 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
                     raise _raised_in_parallel(exc) from None
         else:
             driver(*args)
-
-
-#: (driver, parameter type, particle, y and u dtypes) -> the addresses of passes A, B and C, found
-#: once per process (compiled code keeps its address)
-_PASS_ADDRESSES: dict = {}
 
 
 def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f_tiles: bool = False) -> list:
@@ -171,8 +166,8 @@ def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
     mod.run(*args[:-1], _call_addresses(mod.run, args, find))
 
 
-#: (driver, its arguments' type fingerprints) -> the int64 entry addresses of its calls by address
-#: (MPF, guided), found once per process; a fingerprint, numba's dispatcher key, is far cheaper than
+#: (driver, its arguments' type fingerprints) -> the int64 entry addresses of its calls by address,
+#: found once per process (compiled code keeps its address); a fingerprint, numba's dispatcher key, is far cheaper than
 #: ``numba.typeof`` of the groups
 _CALL_ADDRESSES: dict = {}
 

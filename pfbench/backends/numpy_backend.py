@@ -27,10 +27,6 @@ with zero noise). :func:`weigh` is the one log-sum-exp weighting of every NumPy 
 """
 from __future__ import annotations
 
-import os
-import threading
-from concurrent.futures import ThreadPoolExecutor, wait
-
 import numpy as np
 
 from .. import resampling
@@ -83,7 +79,11 @@ def n_blocks(n: int, block: int = BLOCK) -> int:
 def block_bounds(n: int, block: int = BLOCK) -> np.ndarray:
     """Start of every stream block, then n: (B + 1,) int64 with B = :func:`n_blocks`; block b is
     [(b n) // B, ((b + 1) n) // B), so block sizes differ by at most one particle."""
-    nb = n_blocks(n, block)
+    return _bounds(n, n_blocks(n, block))
+
+
+def _bounds(n: int, nb: int) -> np.ndarray:
+    """The starts of ``nb`` blocks of ``n`` particles, then n (block sizes differ by at most one)."""
     return (np.arange(nb + 1, dtype=np.int64) * n) // nb
 
 
@@ -132,65 +132,20 @@ def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
     return np.minimum(np.searchsorted(cdf, positions, side="right"), n - 1)
 
 
-def draw_initial(initial, p, rng, x, brngs=None, n_threads: int | None = 1) -> None:
+def draw_initial(initial, p, rng, x, brngs=None) -> None:
     """The initial particles of a group into ``x`` (G, N_p, n_x), in the documented draw order (both
     backends call this). One block (``brngs`` None or of length 1): x[g] = initial(rng, N_p, p). B > 1
-    blocks: x[g, block b] = initial(brngs[b], size of block b, p), so a block depends on its own
-    stream alone and ``n_threads`` threads (None: :func:`pfbench.procs.free_cores`) can share the draw
-    and the first touch of ``x``, a large part of a short run at large N_p (NumPy releases the GIL).
-    """
+    blocks: x[g, block b] = initial(brngs[b], size of block b, p), so a block's particles depend on its
+    own stream alone, as its transition noise does."""
     G, n = x.shape[0], x.shape[1]
-    nb = 1 if brngs is None else len(brngs)
-    if nb == 1:
+    if brngs is None or len(brngs) == 1:
         for g in range(G):
             x[g] = initial(rng, n, p)
         return
-    bounds = (np.arange(nb + 1, dtype=np.int64) * n) // nb
-
-    def share(lo: int, hi: int) -> None:
-        for b in range(lo, hi):
-            a, c = int(bounds[b]), int(bounds[b + 1])
-            for g in range(G):
-                x[g, a:c] = initial(brngs[b], c - a, p)
-
-    run_shares(share, nb, n_threads)
-
-
-_POOL: tuple | None = None  # (process id, executor): the helper threads of run_shares
-_POOL_LOCK = threading.Lock()
-
-
-def _helpers():
-    """The process's helper-thread pool (a new one after a fork, which leaves the child none)."""
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None or _POOL[0] != os.getpid():
-            _POOL = (os.getpid(), ThreadPoolExecutor(max_workers=max(os.cpu_count() or 1, 1),
-                                                     thread_name_prefix="pfbench-setup"))
-        return _POOL[1]
-
-
-def run_shares(share, n_items: int, n_threads: int | None = 1) -> None:
-    """``share(lo, hi)`` over ``0 .. n_items - 1`` in k = min(``n_threads``, ``n_items``) contiguous runs
-    (None: :func:`pfbench.procs.free_cores`), the first on this thread; raises the first error. The runs
-    match a static schedule of k numba threads, so pages are first touched by the thread that uses them."""
-    if n_threads is None:
-        from ..procs import free_cores
-
-        n_threads = free_cores()
-    k = max(1, min(int(n_threads), n_items))
-    if k == 1:
-        share(0, n_items)
-        return
-    cuts = [(j * n_items) // k for j in range(k + 1)]
-    pool = _helpers()
-    futures = [pool.submit(share, cuts[j], cuts[j + 1]) for j in range(1, k)]
-    try:
-        share(cuts[0], cuts[1])
-    finally:
-        wait(futures)
-    for f in futures:
-        f.result()
+    bounds = _bounds(n, len(brngs))
+    for b, r in enumerate(brngs):
+        for g in range(G):
+            x[g, bounds[b]:bounds[b + 1]] = initial(r, int(bounds[b + 1] - bounds[b]), p)
 
 
 def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,

@@ -165,12 +165,11 @@ def _old_draw(model, rng, G, n):
 
 
 @pytest.mark.parametrize("n,block", [(600, 128), (1000, 8192)])
-def test_initial_draw_is_per_block_and_the_same_on_any_thread_count(sv, n, block):
+def test_initial_draw_is_per_block(sv, n, block):
     """Several blocks: block b of filter g is ``initial(brngs[b], size of block b)``, filters in turn
-    within a block, on 1, 2 or 3 threads (3 does not divide the 16 blocks) alike. One block: the
-    group's stream, filter after filter, as before per-block draws (the single-stream numbers).
-    Catches a draw keyed on the thread, a block drawn from the wrong stream or into the wrong
-    slice, a thread's share skipped, or a changed single-block draw."""
+    within a block. One block: the group's stream, filter after filter, as before per-block draws
+    (the single-stream numbers). Catches a block drawn from the wrong stream or into the wrong
+    slice, a block skipped, or a changed single-block draw."""
     from pfbench.backends import numpy_backend as nb
     from pfbench.filters.particle import streams
 
@@ -190,26 +189,11 @@ def test_initial_draw_is_per_block_and_the_same_on_any_thread_count(sv, n, block
         for b, r in enumerate(brngs):
             for g in range(G):
                 want[g, bounds[b]:bounds[b + 1]] = init(r, int(bounds[b + 1] - bounds[b]), p)
-    for threads in (1, 2, 3, None):
-        rng, brngs = fresh()
-        x = np.full((G, n, 1), np.nan)
-        nb.draw_initial(init, p, rng, x, brngs, n_threads=threads)
-        np.testing.assert_array_equal(x, want, err_msg=f"n_threads={threads}")
+    rng, brngs = fresh()
+    x = np.full((G, n, 1), np.nan)
+    nb.draw_initial(init, p, rng, x, brngs)
+    np.testing.assert_array_equal(x, want)
     assert not np.array_equal(x[0], x[1])  # the two filters drew their own particles
-
-
-def test_initial_draw_raises_the_models_error_from_a_helper_thread():
-    """An error of the model's ``initial`` on a helper thread reaches the caller (not lost in the pool)."""
-    from pfbench.backends import numpy_backend as nb
-
-    def initial(rng, n, p):
-        if rng is brngs[-1]:
-            raise ValueError("bad prior")
-        return np.zeros((n, 1))
-
-    brngs = [np.random.default_rng(b) for b in range(4)]
-    with pytest.raises(ValueError, match="bad prior"):
-        nb.draw_initial(initial, (), brngs[0], np.empty((1, 40, 1)), brngs, n_threads=2)
 
 
 # (loglik, last estimate) of the code before per-block draws (NumPy backend), SV model, M = 40
