@@ -2,11 +2,10 @@
 # The engine's speed figures on one quiet machine, in one call (about 7 minutes), from the
 # repository root:  OUT=/some/dir bash scripts/engine_check.sh
 # "2 cores" sections run under `taskset -c 0,1`; the others use every core. JSON goes to $OUT
-# (startup.json, busy.json, sweep.json, sweep16.json, e2e.json), the log to stdout. Every section is
+# (e2e.json, busy.json, sweep.json, sweep16.json), the log to stdout. Every section is
 # time-boxed, and a failing one does not stop the next.
 #   1. cold first runs, 2 cores: the compile helper on / off, and a build without calls by address
-#      (the passes compiled into the driver, no helper), Ob1 bootstrap and Ob5 MPF; MPF also
-#      without the constant shape-error message
+#      (the passes compiled into the driver, no helper), Ob1 bootstrap and Ob5 MPF
 #   2. end to end, 12 steps at N_p = 10^6, 1 vs 2 threads on 2 cores
 #   3. default threads vs 1 thread with 2 x (cores) busy processes, 2 cores
 #   4. a 45-second sweep on 1 and 2 workers (2 cores), then on 1, 2 and 16 workers
@@ -22,20 +21,18 @@ fresh() { export PFBENCH_CACHE_DIR=$(mktemp -d) NUMBA_CACHE_DIR=$(mktemp -d); }
 
 log machine
 nproc; $PY -c "import numba, numpy; print('numba', numba.__version__, 'numpy', numpy.__version__)"
-# variants of the package beside the checkout: the passes compiled into the driver (no calls by
-# address, so no helper), and no constant shape-error message
+# a variant of the package beside the checkout: the passes compiled into the driver (no calls by
+# address, so no helper)
 variant() {
   rm -rf "/tmp/$1"; mkdir -p "/tmp/$1"; cp -r pfbench "/tmp/$1/"; rm -f "/tmp/$1/pfbench/reproductions"
 }
 variant inline
 sed -i -e 's/_call_a(_pass_a, settings.pass_a, /_pass_a(/' -e 's/_call_b(_pass_b, settings.pass_b, /_pass_b(/' \
   -e 's/_call_c(_merge_gather, settings.merge, /_merge_gather(/' /tmp/inline/pfbench/backends/numba_particle.py
-sed -i 's/^            addresses = native_addresses(model, "particle", .*$/            addresses = [0, 0, 0]/; /^                                         calls, here=("_pass_b", "_merge_gather"), f_tiles=column_major_tiles(model))$/d' \
+sed -i 's/^            found = native_addresses(model, "particle", .*$/            found = [0, 0, 0]/; /^                                     f_tiles=column_major_tiles(model))$/d' \
   /tmp/inline/pfbench/backends/numba_backend.py
-variant noshape
-sed -i 's/^    constant_shape_error()$/    pass/' /tmp/noshape/pfbench/backends/cache.py
 grep -c "_pass_a(p, brngs" /tmp/inline/pfbench/backends/numba_particle.py
-grep -c "addresses = \[0, 0, 0\]" /tmp/inline/pfbench/backends/numba_backend.py
+grep -c "found = \[0, 0, 0\]" /tmp/inline/pfbench/backends/numba_backend.py
 
 cold() {  # label PYTHONPATH helper(0/1) method model
   fresh
@@ -53,7 +50,6 @@ for round in 1 2; do
   cold inline /tmp/inline 0 bootstrap ob1
   cold helper "$PWD" 1 mpf ob5
   cold one-process "$PWD" 0 mpf ob5
-  cold no-shape-patch /tmp/noshape 1 mpf ob5
 done
 
 fresh
