@@ -13,7 +13,7 @@ from ..procs import free_cores
 from ..resampling import Scheme
 from . import compile_helper, guided_work, mpf_work, native_call, pcg64
 from .kernels import build, column_major_tiles
-from .particle_work import Outputs, Settings, Step, pass_types, work_arrays
+from .particle_work import Settings, Step, outputs, pass_types, work_arrays
 
 _LOCK = threading.RLock()
 _WARM: set = set()
@@ -24,27 +24,20 @@ _PARALLEL_LOCK = threading.Lock()
 
 def warm_up(model, p, y, u, dtype, scheme=0, parallel: bool = False) -> None:
     """Compile (or load) the particle kernel for these argument types outside any timed region:
-    one call on one step and particle with a throwaway generator (``parallel``: the all-threads one)."""
+    one call on one step with a throwaway generator (``parallel``: two blocks on two threads)."""
     key = (type(model), column_major_tiles(model), np.dtype(dtype).str, int(scheme),
            tuple(type(v).__name__ for v in p), parallel)
     if key in _WARM:
         return
-    n_x = model.n_x
-    for par in ((True,) if parallel else (False,)):
-        x = np.empty((1, 2 if par else 1, n_x), dtype=dtype)
-        G, n = 1, x.shape[1]
-        rng = np.random.default_rng(0)
-        run_group(model, p, rng, y[:1], u[:1], x, 0, int(scheme), 1.0, np.empty((G, 1, n_x)),
-                  np.empty((G, 1, n_x)), np.empty((G, 1)), np.empty((G, 1)), np.zeros((G, 1), np.bool_),
-                  np.zeros((G, 1), np.bool_), np.empty((G, 0, n, n_x), dtype), np.empty((G, 0, n)),
-                  brngs=[rng, np.random.default_rng(1)] if par else None, n_threads=2 if par else 1,
-                  block=1 if par else None)
+    rng = np.random.default_rng(0)
+    run_group(model, p, rng, y[:1], u[:1], outputs(1, 1, 1 + parallel, model.n_x, dtype), 0, int(scheme), 1.0,
+              brngs=[rng, np.random.default_rng(1)] if parallel else None, n_threads=1 + parallel,
+              block=1 if parallel else None)
     _WARM.add(key)
 
 
-def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess, inc, resampled,
-              degen, hist_x=None, hist_w=None, *, brngs=None, n_threads: int | None = 1,
-              block: int | None = None, estimate: str = "pre") -> None:
+def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=None,
+              n_threads: int | None = 1, block: int | None = None, estimate: str = "pre") -> None:
     """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL); ``block``: the
     largest stream block. Above one block and with ``n_threads`` != 1 (None: all) the block loops run on
     numba threads, with results independent of the thread count."""
@@ -55,10 +48,8 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     from .numpy_backend import BLOCK, block_bounds, draw_initial
 
     y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # C arrays, as pass A's types say
+    x = out.x
     bounds = block_bounds(x.shape[1], int(block or BLOCK))
-    if hist_x is None:
-        G, n, n_x = x.shape
-        hist_x, hist_w = np.empty((G, 0, n, n_x), x.dtype), np.empty((G, 0, n))
     brngs = [rng] if brngs is None else list(brngs)
     if len(brngs) != bounds.shape[0] - 1:
         raise ValueError(f"{len(brngs)} block streams for {x.shape[1]} particles in {bounds.shape[0] - 1} blocks")
@@ -67,7 +58,6 @@ def run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, e
     work = work_arrays(x, bounds.shape[0] - 1, bounds, int(method))
     # the NumPy backend's draw, into the kernel's first particle buffer
     draw_initial(model.kernel_functions()["initial"], p, rng, work.xs[0], brngs)
-    out = Outputs(x, est, var, ess, inc, resampled, degen, hist_x, hist_w)
     settings = Settings(int(model.n_noise), int(method), int(scheme), float(ess_threshold),
                         Estimate.parse(estimate) == Estimate.POST, 0, 0, 0)
     parallel = len(brngs) > 1 and n_threads != 1

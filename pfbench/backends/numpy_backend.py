@@ -148,14 +148,19 @@ def draw_initial(initial, p, rng, x, brngs=None) -> None:
             x[g, bounds[b]:bounds[b + 1]] = initial(r, int(bounds[b + 1] - bounds[b]), p)
 
 
-def run_group(model, p, rng, y, u, x, method: int, scheme: int, ess_threshold: float,
-              est, var, ess, inc, resampled, degen, hist_x=None, hist_w=None, *, brngs=None,
+def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold: float, *, brngs=None,
               n_threads=None, block: int | None = None, estimate: str = "pre") -> None:
-    """Run G filters over all steps, filling the outputs in place (``hist_x``/``hist_w``: the weighted
-    particles of every step, when given with M rows). ``brngs``: :func:`block_streams` (None: one
-    block); ``n_threads`` is ignored. ``estimate``: ``pre`` (weighted moments before resampling) or
-    ``post`` (at a step that resamples, the resampled particles' moments; :func:`pfbench.run_filter`)."""
-    store = hist_x is not None and hist_x.shape[1] > 0
+    """Run G filters over all steps, filling ``out`` (:class:`pfbench.backends.particle_work.Outputs`:
+    the final particles ``x`` (G, N_p, n_x), ``est`` ... ``degen``, and the weighted particles of every
+    step in ``hist_x``/``hist_w`` when they have M rows) in place. ``method``: a
+    :class:`~pfbench.methods.Method` code of the particle family; ``scheme``: a
+    :class:`~pfbench.resampling.Scheme` code; ``ess_threshold``: a particle count (SIR). ``brngs``:
+    :func:`block_streams` (None: one block); ``n_threads`` is ignored. ``estimate``: ``pre`` (weighted
+    moments before resampling) or ``post`` (at a step that resamples, the resampled particles'
+    moments; :func:`pfbench.run_filter`)."""
+    x, est, var, ess, inc = out.x, out.est, out.var, out.ess, out.inc
+    resampled, degen, hist_x, hist_w = out.resampled, out.degen, out.hist_x, out.hist_w
+    store = hist_x.shape[1] > 0
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
     scheme = resampling.Scheme(scheme)

@@ -30,6 +30,21 @@ class Outputs(NamedTuple):
     hist_x: np.ndarray
     hist_w: np.ndarray
 
+    def rows(self, sl: slice) -> "Outputs":
+        """The outputs of the filters ``sl`` (views)."""
+        return Outputs(*(a[sl] for a in self))
+
+
+def outputs(n_filters: int, n_steps: int, n_particles: int, n_x: int, dtype=np.float64,
+            store: bool = False) -> Outputs:
+    """Fresh :class:`Outputs` of G = ``n_filters`` (N_f) filters of ``n_particles`` (N_p) particles
+    over ``n_steps`` (M) steps, particles in ``dtype``; ``store``: room for every step's weighted
+    particles."""
+    G, M, n, k = n_filters, n_steps, n_particles, n_steps if store else 0
+    return Outputs(np.empty((G, n, n_x), dtype), np.empty((G, M, n_x)), np.empty((G, M, n_x)),
+                   np.empty((G, M)), np.empty((G, M)), np.zeros((G, M), np.bool_), np.zeros((G, M), np.bool_),
+                   np.empty((G, k, n, n_x), dtype), np.empty((G, k, n)))
+
 
 class Work(NamedTuple):
     """The kernel's work arrays (:func:`work_arrays`), allocated by the host: every array

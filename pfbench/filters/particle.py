@@ -40,6 +40,7 @@ import numpy as np
 
 from .. import backends
 from ..backends.numpy_backend import BLOCK, block_streams
+from ..backends.particle_work import outputs
 from ..errors import InputError
 from ..procs import free_cores
 from ..resampling import Scheme
@@ -147,13 +148,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     n_groups = len(rngs)
     per_group = n_filters // n_groups
     ptype = np.float32 if dtype == "float32" else np.float64
-    x = np.empty((n_filters, n_per, n_x), dtype=ptype)
-    out = {"est": np.empty((n_filters, M, n_x)), "var": np.empty((n_filters, M, n_x)),
-           "ess": np.empty((n_filters, M)), "inc": np.empty((n_filters, M)),
-           "resampled": np.zeros((n_filters, M), dtype=np.bool_),
-           "degen": np.zeros((n_filters, M), dtype=np.bool_),
-           "particles": np.empty((n_filters, M if store_particles else 0, n_per, n_x), dtype=ptype),
-           "weights": np.empty((n_filters, M if store_particles else 0, n_per))}
+    out = outputs(n_filters, M, n_per, n_x, ptype, store_particles)
     method = Method.parse(method)
     if method.family != "particle":
         raise InputError(f"run_groups runs the particle methods, not {method.label!r}")
@@ -171,10 +166,8 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
 
     def job(gi: int):
         sl = slice(gi * per_group, (gi + 1) * per_group)
-        be.run_group(model, p, rngs[gi], y, u, x[sl], code, scheme, ess_threshold, out["est"][sl],
-                     out["var"][sl], out["ess"][sl], out["inc"][sl], out["resampled"][sl], out["degen"][sl],
-                     out["particles"][sl], out["weights"][sl], brngs=brngs[gi], n_threads=inner, block=block,
-                     **at)
+        be.run_group(model, p, rngs[gi], y, u, out.rows(sl), code, scheme, ess_threshold, brngs=brngs[gi],
+                     n_threads=inner, block=block, **at)
 
     t0 = time.perf_counter()
     if pooled:
@@ -183,6 +176,8 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     else:
         for gi in range(n_groups):
             job(gi)
-    return out, time.perf_counter() - t0
+    elapsed = time.perf_counter() - t0
+    return {"est": out.est, "var": out.var, "ess": out.ess, "inc": out.inc, "resampled": out.resampled,
+            "degen": out.degen, "particles": out.hist_x, "weights": out.hist_w}, elapsed
 
 

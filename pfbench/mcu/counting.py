@@ -491,6 +491,7 @@ class counting:
 def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: int,
                  resampling: str, ess_threshold, seed: int, compiled: bool = False) -> dict[str, int]:
     from ..backends import numpy_backend
+    from ..backends.particle_work import outputs
     from ..filters.inputs import ess_count
     from ..methods import Method
     from ..filters.particle import split_particles
@@ -507,15 +508,11 @@ def _run_counted(model, n_steps: int, n_particles: int, method: str, n_filters: 
     with counting() as cnt:
         rng = CountingGenerator(np.random.default_rng(seed), cnt)
         G = n_filters if m == Method.MULTIPDF else 1
-        x = _wrap(np.empty((G, n_per, model.n_x)), mem=True)
-        M = n_steps
-        est, var = np.empty((G, M, model.n_x)), np.empty((G, M, model.n_x))
-        ess, inc = np.empty((G, M)), np.empty((G, M))
-        resampled, degen = np.zeros((G, M), dtype=bool), np.zeros((G, M), dtype=bool)
-
+        out = outputs(G, n_steps, n_per, model.n_x)
+        out = out._replace(x=_wrap(out.x, mem=True))
         yc, uc = _wrap(y, mem=True), _wrap(u, mem=True)
-        numpy_backend.run_group(_CountingModel(model, compiled), p, rng, yc, uc, x, int(code),
-                                int(Scheme.parse(resampling)), thr, est, var, ess, inc, resampled, degen)
+        numpy_backend.run_group(_CountingModel(model, compiled), p, rng, yc, uc, out, int(code),
+                                int(Scheme.parse(resampling)), thr)
     return cnt.as_dict()
 
 

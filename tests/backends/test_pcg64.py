@@ -47,13 +47,11 @@ def test_other_bit_generators_are_refused():
     with pytest.raises(UnsupportedError, match="PCG64"):
         pcg64.check_generators([np.random.default_rng(0), np.random.Generator(np.random.Philox(0))])
     m = pfbench.models.get("ob1")
-    x = np.zeros((1, 4, 1))
-    z = np.zeros((1, 2, 1))
     with pytest.raises(UnsupportedError, match="PCG64"):
         from pfbench.backends import numba_backend
+        from pfbench.backends.particle_work import outputs
         numba_backend.run_group(m, m.params(), np.random.Generator(np.random.MT19937(0)), np.zeros((2, 1)),
-                                np.zeros((2, 0)), x, 0, 0, 1.0, z, z, np.zeros((1, 2)), np.zeros((1, 2)),
-                                np.zeros((1, 2), bool), np.zeros((1, 2), bool))
+                                np.zeros((2, 0)), outputs(1, 2, 4, 1), 0, 0, 1.0)
 
 
 @numba.njit

@@ -128,6 +128,7 @@ def test_final_particles_are_the_same_on_both_backends_and_thread_counts(ob1, me
     arithmetic). Catches a copy-out that skips blocks or filters, reads the other buffer, or lands
     the initial particles anywhere but where the first step reads them."""
     from pfbench.backends import numba_backend, numpy_backend
+    from pfbench.backends.particle_work import outputs
     from pfbench.filters.particle import streams
 
     model, traj = ob1
@@ -137,12 +138,11 @@ def test_final_particles_are_the_same_on_both_backends_and_thread_counts(ob1, me
     for be, threads in ((numpy_backend, 1), (numba_backend, 1), (numba_backend, 2)):
         rng = streams(11, 1, True)[0]
         brngs = numpy_backend.block_streams(rng, rng.bit_generator.seed_seq, n, block)
-        x = np.full((G, n, 1), np.nan)
-        out = [np.empty((G, M, 1)), np.empty((G, M, 1)), np.empty((G, M)), np.empty((G, M)),
-               np.zeros((G, M), bool), np.zeros((G, M), bool)]
-        be.run_group(model, model.params(), rng, traj.y, np.zeros((M, 0)), x, code, 0, 300.0, *out,
+        out = outputs(G, M, n, 1)
+        out.x[:] = np.nan
+        be.run_group(model, model.params(), rng, traj.y, np.zeros((M, 0)), out, code, 0, 300.0,
                      brngs=brngs, n_threads=threads, block=block)
-        finals.append(x)
+        finals.append(out.x)
     assert not np.isnan(finals[0]).any()
     assert not np.array_equal(finals[0][0], finals[0][1])  # two filters, two sets of particles
     np.testing.assert_array_equal(finals[1], finals[0])
