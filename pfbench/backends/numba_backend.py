@@ -11,7 +11,7 @@ import numpy as np
 from ..methods import Estimate
 from ..procs import free_cores
 from ..resampling import Scheme
-from . import compile_helper, guided_work, mpf_work, native_call, pcg64
+from . import compile_helper, mpf_work, native_call, pcg64
 from .kernels import build, column_major_tiles
 from .particle_work import Settings, Step, outputs, pass_types, work_arrays
 
@@ -219,17 +219,16 @@ def _run_calls(p, rng, u, st, work) -> dict:
 
 
 # --------------------------------------------------------------------------- the guided family
-def run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
-    """The numba guided filter (:func:`pfbench.filters.guided.run_guided`) from the initial particles
-    ``x`` and log-weights ``lw``; ``kind``: ``proposal`` or ``optimal``; fills the outputs in place."""
+def run_guided(model, kind, p, rng, y, u, particles, out, settings):
+    """The numba guided filter (:func:`pfbench.filters.guided.run_guided`) from the initial ``particles``;
+    ``kind``: ``proposal`` or ``optimal``; fills ``out`` in place (groups of :mod:`pfbench.backends.guided_work`;
+    the addresses in ``settings`` are found here)."""
     y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # the row types _model_calls gives
-    mod = build("guided", model, scheme)
+    mod = build("guided", model, settings.scheme)
     driver = getattr(mod, f"run_{kind}")
-    out = guided_work.Outputs(est, var, ess, inc, res, degen)
-    settings = guided_work.Settings(int(n_noise), int(scheme), float(threshold))
-    args = (p, rng, y, u, x, lw, out, settings)
+    args = (p, rng, y, u, particles, out, settings)
     propose, weight = _call_addresses(driver, args, lambda: native_addresses(
-        model, "guided", mod, driver, args, _model_calls(kind, p, y, u, x, n_noise)))
+        model, "guided", mod, driver, args, _model_calls(kind, p, y, u, particles.x, settings.n_noise)))
     driver(*args[:-1], settings._replace(propose=int(propose), weight=int(weight)))
 
 

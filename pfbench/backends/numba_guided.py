@@ -11,14 +11,14 @@ that kind uses. :func:`init` and the ``step_*`` functions also serve per-step ca
 compiled code (the closed-loop PMSM simulation, :func:`pfbench.filters.guided.step_functions`); they
 and :func:`_reweigh` are ``inline="always"``, so a caller is compiled and optimised once, not per level.
 
-Step-function arguments: ``p`` the model's ``params()``; ``x`` (n, n_x) particles and ``lw`` (n,)
-normalised log-weights, updated in place; ``y``/``u`` step ``t``'s measurement and input; ``n_noise``
-normals per particle; ``scheme`` a :class:`~pfbench.resampling.Scheme` code; ``threshold`` a particle
-count (resample when N_eff < threshold); ``mean``/``var`` (n_x,) outputs, the weighted moments of step
-t. They return ``(loglik increment, N_eff, resampled, degenerate)``.
+A step function takes ``(p, rng, particles, y, u, t, settings, moments)``: the model's ``params()``,
+the generator, step ``t``'s measurement and input and the groups of :mod:`pfbench.backends.guided_work`
+(``particles`` updated in place, ``moments`` filled); it returns ``(loglik increment, N_eff, resampled,
+degenerate)``.
 """
 import numpy as _np
 
+from pfbench.backends.guided_work import Moments as _Moments
 from pfbench.backends.kernels import binding as _binding
 from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_weights import moments as _moments
@@ -41,7 +41,7 @@ _call7 = _caller(7)
 
 # --------------------------------------------------------------------------- the model's calls
 # A whole run (in a scheme's module) calls the model through these, by address
-# (:mod:`pfbench.backends.native_call`; ``addresses`` = (proposal, weight)): scheme-free
+# (:mod:`pfbench.backends.native_call`; ``settings.propose``, ``settings.weight``): scheme-free
 # (:attr:`pfbench.backends.kernels.Family.shared`), so compiled once per model, on a cold cache in a
 # helper. The any-scheme module, for per-step callers, calls the model directly (``_SCHEME == -1``).
 @_njit(nogil=True, no_cpython_wrapper=True)
@@ -68,30 +68,30 @@ _predictive_into = _b.shared("_predictive_into", _predictive_into)
 
 
 @_njit(nogil=True, inline="always")
-def _propose(x, y, u, t, noise, p, addresses):
+def _propose(x, y, u, t, noise, p, settings):
     xn = _np.empty_like(x)
     if _SCHEME == -1:  # compile-time constant
         xn[:] = _proposal(x, y, u, t, noise, p)
     else:
-        _call7(_propose_into, addresses[0], x, y, u, t, noise, p, xn)
+        _call7(_propose_into, settings.propose, x, y, u, t, noise, p, xn)
     return xn
 
 
 @_njit(nogil=True, inline="always")
-def _weight(xn, x, y, u, t, p, addresses):
+def _weight(xn, x, y, u, t, p, settings):
     if _SCHEME == -1:
         return _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
     ll = _np.empty(x.shape[0])
-    _call7(_weight_into, addresses[1], xn, x, y, u, t, p, ll)
+    _call7(_weight_into, settings.weight, xn, x, y, u, t, p, ll)
     return ll
 
 
 @_njit(nogil=True, inline="always")
-def _predictive(y, x, u, t, p, addresses):
+def _predictive(y, x, u, t, p, settings):
     if _SCHEME == -1:
         return _predictive_log_likelihood(y, x, u, t, p).astype(_np.float64)
     ll = _np.empty(x.shape[0])
-    _call6(_predictive_into, addresses[1], y, x, u, t, p, ll)
+    _call6(_predictive_into, settings.weight, y, x, u, t, p, ll)
     return ll
 
 
@@ -104,17 +104,18 @@ def init(p, rng, x, lw):
 
 
 @_njit(nogil=True, inline="always")
-def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, cdf):
+def _reweigh(particles, ll, settings, rng, moments, wu, cdf):
     """Twin of ``pfbench.filters.guided._reweigh``: weigh, N_eff, then resample (``wu`` equal weights after)
     or keep the normalised log-weights. Returns (increment, N_eff, resampled, degenerate, total)."""
+    x, lw = particles
     n = x.shape[0]
     m, total, deg = _weigh(lw, ll, wu, cdf)
     inc = -_np.inf if deg else m + _np.log(total)
-    e = _moments(x, wu, total, mean, var)
-    do = e < threshold
+    e = _moments(x, wu, total, moments.mean, moments.var)
+    do = e < settings.threshold
     if do:  # resample and gather in place (inline: one compiled function less on a cold cache)
         idx = _np.empty(n, _np.int64)
-        _resample(scheme, wu, cdf, rng, idx)
+        _resample(settings.scheme, wu, cdf, rng, idx)
         buf = x.copy()
         for i in range(n):
             for a in range(x.shape[1]):
@@ -128,53 +129,49 @@ def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, cdf):
 
 
 @_njit(nogil=True, inline="always")
-def step_proposal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, addresses=None):
+def step_proposal(p, rng, particles, y, u, t, settings, moments):
     """The model's own proposal: x_t ~ q(. | x_{t-1}, y_t), weight by ``proposal_log_weight``,
-    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000]).
-    ``addresses``: see "the model's calls" above (unused in the any-scheme module)."""
+    estimate (weighted mean before resampling), resample when N_eff < threshold ([Doucet2000])."""
+    x = particles.x
     n = x.shape[0]
-    noise = rng.standard_normal((n, n_noise))
-    xn = _propose(x, y, u, t, noise, p, addresses)
-    ll = _weight(xn, x, y, u, t, p, addresses)
+    noise = rng.standard_normal((n, settings.n_noise))
+    xn = _propose(x, y, u, t, noise, p, settings)
+    ll = _weight(xn, x, y, u, t, p, settings)
     x[:] = xn
-    inc, e, do, deg, _ = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, _np.empty(n), _np.empty(n))
+    inc, e, do, deg, _ = _reweigh(particles, ll, settings, rng, moments, _np.empty(n), _np.empty(n))
     return inc, e, do, deg
 
 
 @_njit(nogil=True, inline="always")
-def step_optimal(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var, addresses=None):
+def step_optimal(p, rng, particles, y, u, t, settings, moments):
     """The locally optimal proposal, fully adapted ([Doucet2000]; [Thesis] eqs. 4.24-4.25): weight by
     p(y_t | x_{t-1}), resample when N_eff < threshold, propagate x_t ~ p(x_t | x_{t-1}, y_t); the
     estimate is the weighted mean of the propagated particles."""
+    x = particles.x
     n = x.shape[0]
     wu = _np.empty(n)
-    ll = _predictive(y, x, u, t, p, addresses)
-    inc, e, do, deg, total = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var, wu, _np.empty(n))
-    noise = rng.standard_normal((n, n_noise))
-    xn = _propose(x, y, u, t, noise, p, addresses)
-    x[:] = xn
-    _moments(x, wu, total, mean, var)
+    ll = _predictive(y, x, u, t, p, settings)
+    inc, e, do, deg, total = _reweigh(particles, ll, settings, rng, moments, wu, _np.empty(n))
+    noise = rng.standard_normal((n, settings.n_noise))
+    x[:] = _propose(x, y, u, t, noise, p, settings)
+    _moments(x, wu, total, moments.mean, moments.var)
     return inc, e, do, deg
 
 
 @_njit(nogil=True)
-def run_proposal(p, rng, y, u, x, lw, out, settings):
-    """All M steps with the model's own proposal, filling ``out``, from ``x``, ``lw`` drawn by the caller
+def run_proposal(p, rng, y, u, particles, out, settings):
+    """All M steps with the model's own proposal, filling ``out``, from ``particles`` drawn by the caller
     with the model's NumPy ``initial`` (:func:`pfbench.filters.guided.numpy_init`; the kernel continues
     that stream); ``settings`` holds the addresses of ``_propose_into`` and ``_weight_into``."""
-    addresses = (settings.propose, settings.weight)
-    n_noise, scheme, threshold = settings.n_noise, settings.scheme, settings.threshold
     for t in range(y.shape[0]):
         out.inc[t], out.ess[t], out.resampled[t], out.degen[t] = step_proposal(
-            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, out.est[t], out.var[t], addresses)
+            p, rng, particles, y[t], u[t], t, settings, _Moments(out.est[t], out.var[t]))
 
 
 @_njit(nogil=True)
-def run_optimal(p, rng, y, u, x, lw, out, settings):
+def run_optimal(p, rng, y, u, particles, out, settings):
     """All M steps with the locally optimal proposal, as :func:`run_proposal` (``settings`` with the
     addresses of ``_propose_into`` and ``_predictive_into``)."""
-    addresses = (settings.propose, settings.weight)
-    n_noise, scheme, threshold = settings.n_noise, settings.scheme, settings.threshold
     for t in range(y.shape[0]):
         out.inc[t], out.ess[t], out.resampled[t], out.degen[t] = step_optimal(
-            p, rng, x, lw, y[t], u[t], t, n_noise, scheme, threshold, out.est[t], out.var[t], addresses)
+            p, rng, particles, y[t], u[t], t, settings, _Moments(out.est[t], out.var[t]))

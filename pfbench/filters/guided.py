@@ -45,6 +45,12 @@ seed the backends agree to round-off (<= 1e-9, tested).
 Per-step use from compiled code: :func:`step_functions` returns ``init`` / ``step`` functions that
 run this NumPy reference when called from Python and the compiled kernel when called from a numba
 function (the closed-loop PMSM simulation uses them).
+
+Arguments: the steps take the groups of :mod:`pfbench.backends.guided_work`, as the kernel's do:
+``particles`` (:class:`~pfbench.backends.guided_work.Particles`: x, lw), ``settings``
+(:class:`~pfbench.backends.guided_work.Settings`: n_noise, scheme, threshold and the model's two
+calls, here its NumPy functions) and ``moments`` (:class:`~pfbench.backends.guided_work.Moments`:
+mean, var); a whole run fills :class:`~pfbench.backends.guided_work.Outputs`.
 """
 from __future__ import annotations
 
@@ -57,6 +63,7 @@ from numba.extending import overload, register_jitable
 
 from .. import resampling as _resampling
 from ..backends import numba_backend as _numba_backend
+from ..backends.guided_work import Moments, Outputs, Particles, Settings
 from ..backends.kernels import build
 from ..backends.numpy_backend import valid_log_likelihood, normalised_log_weights, weigh
 from ..errors import InputError, UnsupportedError
@@ -222,7 +229,8 @@ def _moments(x, wu, total, mean, var) -> float:
     return float(1.0 / np.cumsum(wn * wn)[-1])
 
 
-def _resample(x, lw, wu, scheme, rng) -> None:
+def _resample(particles, wu, scheme, rng) -> None:
+    x, lw = particles
     x[:] = x[_resampling.get(Scheme(scheme))(wu, rng)]
     lw[:] = -np.log(x.shape[0])
 
@@ -234,54 +242,66 @@ def numpy_init(fns, p, rng, x, lw) -> None:
     lw[:] = -np.log(n)
 
 
-def _reweigh(x, lw, ll, scheme, threshold, rng, mean, var):
+def _reweigh(particles, ll, settings, rng, moments):
     """Weigh (log-sum-exp), N_eff, then resample or keep the normalised log-weights: the part both
     kinds of step share. Returns (increment, N_eff, resampled, degenerate, wu, total), with
     ``wu``/``total`` the equal weights after a resampling."""
+    x, lw = particles
     wu, _, m, total, deg = weigh(lw, ll)
     inc = -np.inf if deg else m + np.log(total)
-    e = _moments(x, wu, total, mean, var)
-    do = bool(e < threshold)
+    e = _moments(x, wu, total, *moments)
+    do = bool(e < settings.threshold)
     if do:
-        _resample(x, lw, wu, scheme, rng)
+        _resample(particles, wu, settings.scheme, rng)
         wu, total = np.ones(x.shape[0]), float(x.shape[0])
     else:
         lw[:] = normalised_log_weights(wu, total)
     return inc, e, do, bool(deg), wu, total
 
 
-def numpy_step_proposal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+def numpy_step_proposal(p, rng, particles, y, u, t, settings, moments):
     """One step with the model's own proposal (see the module docstring); NumPy twin of
-    ``numba_guided.step_proposal``. Returns (increment, N_eff, resampled, degenerate)."""
-    noise = rng.standard_normal((x.shape[0], n_noise))
+    ``numba_guided.step_proposal``, ``settings`` with the model's ``proposal`` and
+    ``proposal_log_weight``. Returns (increment, N_eff, resampled, degenerate)."""
+    x = particles.x
+    noise = rng.standard_normal((x.shape[0], settings.n_noise))
     xn = np.empty_like(x)
-    xn[:] = fns["proposal"](x, y, u, t, noise, p)
-    ll = valid_log_likelihood(fns["proposal_log_weight"](xn, x, y, u, t, p))
+    xn[:] = settings.propose(x, y, u, t, noise, p)
+    ll = valid_log_likelihood(settings.weight(xn, x, y, u, t, p))
     x[:] = xn
-    return _reweigh(x, lw, ll, scheme, threshold, rng, mean, var)[:4]
+    return _reweigh(particles, ll, settings, rng, moments)[:4]
 
 
-def numpy_step_optimal(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
+def numpy_step_optimal(p, rng, particles, y, u, t, settings, moments):
     """One fully adapted step with the locally optimal proposal (see the module docstring); NumPy
-    twin of ``numba_guided.step_optimal``. Returns (increment, N_eff, resampled, degenerate)."""
-    ll = valid_log_likelihood(fns["predictive_log_likelihood"](y, x, u, t, p))
-    inc, e, do, deg, wu, total = _reweigh(x, lw, ll, scheme, threshold, rng, mean, var)
-    noise = rng.standard_normal((x.shape[0], n_noise))
+    twin of ``numba_guided.step_optimal``, ``settings`` with the model's ``proposal`` and
+    ``predictive_log_likelihood``. Returns (increment, N_eff, resampled, degenerate)."""
+    x = particles.x
+    ll = valid_log_likelihood(settings.weight(y, x, u, t, p))
+    inc, e, do, deg, wu, total = _reweigh(particles, ll, settings, rng, moments)
+    noise = rng.standard_normal((x.shape[0], settings.n_noise))
     xn = np.empty_like(x)
-    xn[:] = fns["proposal"](x, y, u, t, noise, p)
+    xn[:] = settings.propose(x, y, u, t, noise, p)
     x[:] = xn
-    _moments(x, wu, total, mean, var)
+    _moments(x, wu, total, *moments)
     return inc, e, do, deg
 
 
 _NUMPY_STEPS = {"proposal": numpy_step_proposal, "optimal": numpy_step_optimal}
 
 
+def _numpy_calls(fns, kind) -> dict:
+    """The model's two NumPy functions of a ``kind`` as the :class:`Settings` fields ``propose``, ``weight``."""
+    return dict(zip(("propose", "weight"), (fns[name] for name in KINDS[kind])))
+
+
 # --------------------------------------------------------------- per-step functions for compiled callers
 class StepFunctions(NamedTuple):
-    """``init(p, rng, x, lw)`` and ``step(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean,
-    var) -> (increment, N_eff, resampled, degenerate)`` of one model class (arguments as in
-    :mod:`pfbench.backends.numba_guided`); ``kind`` and ``n_noise`` of the model."""
+    """``init(p, rng, x, lw)`` and ``step(p, rng, particles, y, u, t, settings, moments) -> (increment,
+    N_eff, resampled, degenerate)`` of one model class, with the groups of
+    :mod:`pfbench.backends.guided_work` (a caller's ``settings`` need no call addresses:
+    ``Settings(n_noise, scheme, threshold, 0, 0)``, all five fields in compiled code); ``kind`` and
+    ``n_noise`` of the model."""
 
     init: object
     step: object
@@ -307,15 +327,15 @@ def step_functions(model_cls) -> StepFunctions:
         return _STEPS[cls]
     kind = proposal_kind(cls)
     fns = _functions(cls)
-    np_step = _NUMPY_STEPS[kind]
+    np_step, calls = _NUMPY_STEPS[kind], _numpy_calls(fns, kind)
     module = build("guided", cls)
     kernel_init, kernel_step = module.init, getattr(module, f"step_{kind}")
 
     def init(p, rng, x, lw):
         numpy_init(fns, p, rng, x, lw)
 
-    def step(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
-        return np_step(fns, p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var)
+    def step(p, rng, particles, y, u, t, settings, moments):
+        return np_step(p, rng, particles, y, u, t, settings._replace(**calls), moments)
 
     @overload(init)
     def _init_numba(p, rng, x, lw):
@@ -324,9 +344,9 @@ def step_functions(model_cls) -> StepFunctions:
         return impl
 
     @overload(step)
-    def _step_numba(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
-        def impl(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var):
-            return kernel_step(p, rng, x, lw, y, u, t, n_noise, scheme, threshold, mean, var)
+    def _step_numba(p, rng, particles, y, u, t, settings, moments):
+        def impl(p, rng, particles, y, u, t, settings, moments):
+            return kernel_step(p, rng, particles, y, u, t, settings, moments)
         return impl
 
     _STEPS[cls] = StepFunctions(init, step, kind, _n_noise(cls))
@@ -334,35 +354,31 @@ def step_functions(model_cls) -> StepFunctions:
 
 
 # --------------------------------------------------------------------------- whole runs
-def _run_numpy(model, p, rng, y, u, x, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
+def _run_numpy(model, kind, p, rng, y, u, particles, out, settings):
     fns = _functions(type(model))
-    step = _NUMPY_STEPS[kind]
-    lw = np.empty(x.shape[0])
-    numpy_init(fns, p, rng, x, lw)
+    step, settings = _NUMPY_STEPS[kind], settings._replace(**_numpy_calls(fns, kind))
+    numpy_init(fns, p, rng, *particles)
     for t in range(y.shape[0]):
-        inc[t], ess[t], res[t], degen[t] = step(fns, p, rng, x, lw, y[t], u[t], t, n_noise, scheme,
-                                                threshold, est[t], var[t])
+        out.inc[t], out.ess[t], out.resampled[t], out.degen[t] = step(
+            p, rng, particles, y[t], u[t], t, settings, Moments(out.est[t], out.var[t]))
 
 
 _WARM: set = set()
 
 
-def _run_numba(model, p, rng, y, u, x, kind, n_noise, scheme, threshold, est, var, ess, inc, res, degen):
-    lw = np.empty(x.shape[0])
-    numpy_init(_functions(type(model)), p, rng, x, lw)  # in NumPy, as the reference: the kernel continues
-    _numba_backend.run_guided(model, p, rng, y, u, x, lw, kind, n_noise, scheme, threshold, est, var, ess, inc,
-                              res, degen)
+def _run_numba(model, kind, p, rng, y, u, particles, out, settings):
+    numpy_init(_functions(type(model)), p, rng, *particles)  # in NumPy, as the reference: the kernel continues
+    _numba_backend.run_guided(model, kind, p, rng, y, u, particles, out, settings)
 
 
-def _warm_up(model, p, y, u, x, kind, n_noise, scheme) -> None:
-    """Compile (or load) the kernel outside the timed region, on a throwaway generator."""
-    key = (type(model), kind, x.dtype.str, scheme, tuple(type(v).__name__ for v in p))
+def _warm_up(model, kind, p, y, u, particles, out, settings) -> None:
+    """Compile (or load) the kernel outside the timed region: one step and one particle (copies), on a
+    throwaway generator."""
+    key = (type(model), kind, particles.x.dtype.str, settings.scheme, tuple(type(v).__name__ for v in p))
     if key in _WARM:
         return
-    n_x = x.shape[1]
-    _run_numba(model, p, np.random.default_rng(0), y[:1], u[:1], np.empty((1, n_x), x.dtype), kind,
-               n_noise, scheme, 0.5, np.empty((1, n_x)), np.empty((1, n_x)), np.empty(1), np.empty(1),
-               np.zeros(1, np.bool_), np.zeros(1, np.bool_))
+    _run_numba(model, kind, p, np.random.default_rng(0), y[:1], u[:1], Particles(*(a[:1].copy() for a in particles)),
+               Outputs(*(a[:1].copy() for a in out)), settings._replace(threshold=0.5))
     _WARM.add(key)
 
 
@@ -402,23 +418,22 @@ def run_guided(model, y, u=None, *, n_particles: int, resampling="systematic", e
     rng = np.random.default_rng(seed_sequence(seed))
     M, n_x = y.shape[0], model.n_x
     p = model.params()
-    n_noise = _n_noise(model)
-    x = np.empty((n, n_x), dtype=np.float32 if dtype == "float32" else np.float64)
-    est, var = np.empty((M, n_x)), np.empty((M, n_x))
-    ess, inc = np.empty(M), np.empty(M)
-    res, degen = np.zeros(M, np.bool_), np.zeros(M, np.bool_)
+    settings = Settings(_n_noise(model), int(scheme), float(threshold))
+    particles = Particles(np.empty((n, n_x), dtype=np.float32 if dtype == "float32" else np.float64), np.empty(n))
+    out = Outputs(np.empty((M, n_x)), np.empty((M, n_x)), np.empty(M), np.empty(M), np.zeros(M, np.bool_),
+                  np.zeros(M, np.bool_))
     if backend == "numba":
-        _warm_up(model, p, y, u, x, kind, n_noise, int(scheme))
+        _warm_up(model, kind, p, y, u, particles, out, settings)
         run = _run_numba
     else:
         run = _run_numpy
     t0 = time.perf_counter()
-    run(model, p, rng, y, u, x, kind, n_noise, int(scheme), float(threshold), est, var, ess, inc, res,
-        degen)
+    run(model, kind, p, rng, y, u, particles, out, settings)
     elapsed = time.perf_counter() - t0
     return FilterResult(
-        estimates=est, variances=var, loglik=float(inc.sum()), loglik_increments=inc, ess=ess,
-        n_resampled=int(res.sum()), degenerate=degen, elapsed_s=elapsed, method=Method.GUIDED.label,
-        backend=backend, dtype=dtype, n_particles=n, n_filters=1, extras={"resampled": res},
+        estimates=out.est, variances=out.var, loglik=float(out.inc.sum()), loglik_increments=out.inc,
+        ess=out.ess, n_resampled=int(out.resampled.sum()), degenerate=out.degen, elapsed_s=elapsed,
+        method=Method.GUIDED.label, backend=backend, dtype=dtype, n_particles=n, n_filters=1,
+        extras={"resampled": out.resampled},
         info={"proposal_kind": kind, "resampling": scheme.label, "ess_threshold": threshold,
-              "n_proposal_noise": n_noise})
+              "n_proposal_noise": settings.n_noise})

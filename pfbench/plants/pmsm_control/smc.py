@@ -36,6 +36,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from ...backends.cache import njit
+from ...backends.guided_work import Moments, Particles, Settings
 from ...backends.numba_weights import weigh as _weigh
 from ...errors import InputError
 from ...filters.guided import step_functions
@@ -203,7 +204,8 @@ def smc_update(p, rng, rng_point, x, lw, wn, om, th, pe, mean, var, ured, t, y_t
     """One step of the thesis SMC at step t, shared by the offline filter and the closed loop: the
     generic guided step on the reduced model (inputs (u_{t-1}, y_{t-1}); nothing at t = 0, the
     prior), then the normalised weights ``wn``, the particles as ``om``/``th`` and the point
-    estimate with its spread in ``pe``. Returns (log-likelihood increment, N_eff, resampled)."""
+    estimate with its spread in ``pe``. Returns (log-likelihood increment, N_eff, resampled). The
+    guided step's groups (:mod:`pfbench.backends.guided_work`) are built here, in compiled code too."""
     n = x.shape[0]
     inc = 0.0
     e = float(n)
@@ -213,7 +215,8 @@ def smc_update(p, rng, rng_point, x, lw, wn, om, th, pe, mean, var, ured, t, y_t
         ured[1] = u_prev[1]
         ured[2] = y_prev[0]
         ured[3] = y_prev[1]
-        inc, e, r, _ = guided_step(p, rng, x, lw, y_t, ured, t, N_NOISE, scheme, threshold, mean, var)
+        settings = Settings(N_NOISE, scheme, threshold, 0, 0)  # every field: numba fills in no defaults
+        inc, e, r, _ = guided_step(p, rng, Particles(x, lw), y_t, ured, t, settings, Moments(mean, var))
     weights_from_log(lw, wn)
     split_particles(x, om, th)
     point_estimate(om, th, wn, mode, rng_point, pe)

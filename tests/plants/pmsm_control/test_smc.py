@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from pfbench.backends.guided_work import Moments, Particles, Settings
 from pfbench.models.pmsm import Pmsm, PmsmReduced
 from pfbench.plants.pmsm_control.smc import (N_NOISE, guided_init, guided_step, point_estimate,
                                              run_smc, shift_inputs, weights_from_log)
@@ -26,8 +27,8 @@ def test_step_weights_are_the_predictive_likelihood():
     ured = np.array([1.0, 2.0, 0.2, -0.1])                     # (u_{t-1}, y_{t-1})
     y = np.array([0.25, -0.02])
     lls = PmsmReduced.predictive_log_likelihood(y, x, ured, 1, p)
-    inc, ess, res, deg = guided_step(p, np.random.default_rng(1), x, lw, y, ured, 1, N_NOISE, 4, 0.0,
-                                     np.empty(2), np.empty(2))
+    inc, ess, res, deg = guided_step(p, np.random.default_rng(1), Particles(x, lw), y, ured, 1,
+                                     Settings(N_NOISE, 4, 0.0), Moments(np.empty(2), np.empty(2)))
     assert np.allclose(lw, lls - np.log(np.sum(np.exp(lls))), atol=1e-12)
     assert inc == pytest.approx(np.log(np.mean(np.exp(lls))), abs=1e-12)
     assert not res and not deg and 1 <= ess <= n
