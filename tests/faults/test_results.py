@@ -4,7 +4,6 @@ records, missing/changed artefacts, unwritable output directories, two concurren
 file permissions. The invariant: a result set that ``report`` accepts belongs to one run (its
 files are byte-identical to a clean run with the record's seed); anything else is listed as
 damaged and ``report --strict`` exits 2."""
-import json
 import os
 import signal
 import subprocess

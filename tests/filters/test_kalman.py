@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg as sl
 from scipy.stats import multivariate_normal
 
 from pfbench import kalman
@@ -59,7 +58,6 @@ def test_kf_matches_filterpy(n_x, n_y, n_u):
 def _brute_force_loglik(A, C, Q, R, x0, P0, y, B=None, D=None, u=None):
     """log N(vec y; mu, Sigma) of the stacked observations (dense joint Gaussian)."""
     M, n_y = y.shape
-    n_x = A.shape[0]
     means, V = [], []
     m, P = x0, P0
     for t in range(M):
