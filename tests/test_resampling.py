@@ -108,9 +108,7 @@ def test_epanechnikov_moments():
     assert np.mean(np.sum(e3 ** 2, axis=1)) == pytest.approx(3 / 7, rel=0.02)
 
 
-@pytest.mark.parametrize("impl", [resampling.regularized, numba_resampling.regularized],
-                         ids=["numpy", "numba"])
-def test_regularized_jitter_is_epanechnikov_scaled_by_h_and_the_covariance(impl):
+def test_regularized_jitter_is_epanechnikov_scaled_by_h_and_the_covariance():
     """x_i* = x_{a_i} + h D eps_i ([Thesis] Alg. 4): recover the jitter d_i = x_i* - x_{a_i} (the
     ancestors a_i come from replaying the scheme's draws, which come first) and whiten it with the
     weighted covariance D D^T and h = h_opt. Then z_i = D^-1 d_i / h must be Epanechnikov draws: inside
@@ -123,7 +121,7 @@ def test_regularized_jitter_is_epanechnikov_scaled_by_h_and_the_covariance(impl)
     rng = np.random.default_rng(1)
     x = rng.normal(2.0, 1.0, (n, n_x)) @ np.array([[1.0, 0.6], [0.0, 0.5]])
     w = rng.random(n)
-    out = impl(x, w, np.random.default_rng(2))
+    out = resampling.regularized(x, w, np.random.default_rng(2))
     anc = resampling.systematic(w, np.random.default_rng(2))
     d = out - x[anc]
     wn = w / w.sum()
@@ -135,15 +133,6 @@ def test_regularized_jitter_is_epanechnikov_scaled_by_h_and_the_covariance(impl)
     assert np.max(np.linalg.norm(z, axis=1)) <= 1.0 + 1e-9
     assert np.all(np.abs(z.mean(axis=0)) < 0.03)
     np.testing.assert_allclose(z.T @ z / n, np.eye(n_x) / (n_x + 4), atol=0.03)
-
-
-def test_regularized_numba_matches_numpy():
-    rng = np.random.default_rng(3)
-    x = rng.normal(size=(300, 2))
-    w = rng.random(300)
-    a = resampling.regularized(x, w, np.random.default_rng(9))
-    b = numba_resampling.regularized(x, w, np.random.default_rng(9))
-    assert np.allclose(a, b, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("scheme", ["residual", "residual_deterministic"])

@@ -1,7 +1,7 @@
 """How the filters execute: ``numpy`` (the readable reference) and ``numba`` (the fast path).
 
-Both expose ``run_group(model, p, rng, y, u, x, method, scheme, ess_threshold, est, var, ess,
-inc, resampled, degen, hist_x=None, hist_w=None)`` for the particle family;
+Both expose ``run_group(model, p, rng, y, u, out, method, scheme, ess_threshold)`` for the particle
+family (``out``: :func:`pfbench.backends.particle_work.outputs`);
 :func:`pfbench.run_filter` is the public entry point. The marginalized and guided filters have
 their compiled kernels in ``numba_mpf.py`` / ``numba_guided.py``.
 """

@@ -12,8 +12,7 @@ disk cache, :func:`pfbench.backends.numba_backend.native_addresses` calls :func:
 Python (``python -c`` with this process's import path, so it imports the same pfbench and model
 module) is handed the model class (by module and name), the kernel family, the tile layout and
 the functions' names and argument types, and compiles them into the same disk cache
-(:mod:`pfbench.backends.cache`) while this process compiles the driver; :meth:`Helper.finish`
-waits for it, and this process then loads the functions from disk. What stays here is the
+(:mod:`pfbench.backends.cache`) while this process compiles the driver, then waits for it, and this process then loads the functions from disk. What stays here is the
 caller's choice (``here`` of ``native_addresses``): the particle kernel hands the helper pass A,
 the Kalman driver its step math, the MPF driver the model's functions and the wrappers that call
 them (keeping the model-free steps that balance the two cores), a guided run the wrappers of the
@@ -61,28 +60,15 @@ def cold(dispatcher, argtypes: tuple) -> bool:
     return has_entry is not None and not has_entry(tuple(argtypes), dispatcher.targetctx)
 
 
-class Helper:
-    """A running helper process (:func:`start`)."""
-
-    def __init__(self, proc: subprocess.Popen):
-        self.proc = proc
-
-    def finish(self) -> bool:
-        """Wait for the helper; True when it compiled and saved its function. Killed when the
-        wait is interrupted."""
-        try:
-            return self.proc.wait() == 0
-        except BaseException:
-            self.kill()
-            raise
-
-    def kill(self) -> None:
-        """End the helper now (its work is no longer wanted: an interrupt or an error here)."""
-        self.proc.kill()
-        self.proc.wait()
+def stop(proc: subprocess.Popen) -> None:
+    """Kill a helper still running (its work is no longer wanted: an interrupt or an error here);
+    SIGKILL, as it holds SIGTERM back while numba compiles (:mod:`pfbench.backends.interrupts`)."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
 
 
-def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | None:
+def start(model_cls: type, family: str, f_tiles: bool, functions) -> subprocess.Popen | None:
     """Compile ``functions``, a list of ``(name, argument types)``, of the any-scheme kernel module
     of ``model_cls`` for the kernel ``family`` (:func:`pfbench.backends.kernels.build`
     with ``scheme=None``) in a helper process, into the disk cache; None when no helper is used
@@ -105,7 +91,7 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> Helper | No
         proc.kill()
         proc.wait()
         return None
-    return Helper(proc)
+    return proc
 
 
 #: the helper's program: this process's import path, then :func:`_main` with the spec (which

@@ -114,10 +114,9 @@ def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f
                         for name, f, a, _ in funcs:
                             if name in here:
                                 native_call.entry_address(f, a)
-                    except BaseException:  # Ctrl-C (delivered when the compile ends) or an error
-                        helper.kill()
-                        raise
-                    helper.finish()
+                        helper.wait()
+                    finally:  # after Ctrl-C (delivered when the compile ends) or an error: not wanted
+                        compile_helper.stop(helper)
         return [native_call.entry_address(f, a) for _, f, a, _ in funcs]
 
 

@@ -359,11 +359,6 @@ def kernel_name(scheme) -> str:
     return KERNELS[Scheme(scheme) if isinstance(scheme, int) else Scheme.parse(scheme)]
 
 
-def kernel(scheme):
-    """The compiled kernel ``(code, w, cdf, rng, idx)`` of a scheme (None: :func:`any_scheme`)."""
-    return globals()[kernel_name(scheme)]
-
-
 def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:
     """Public wrapper with the signature of :func:`pfbench.resampling.resample`."""
     from .. import resampling as ref
@@ -374,33 +369,6 @@ def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:
     cdf = np.empty_like(w)
     cumsum_into(w, cdf)
     idx = np.empty(w.shape[0], np.int64)
-    kernel(code)(code, w, cdf, rng, idx)
+    globals()[kernel_name(code)](code, w, cdf, rng, idx)
     return idx
 
-
-@njit
-def _regularized_jitter(x, idx, d, h, rng):
-    n, n_x = x.shape
-    z = rng.standard_normal((n, n_x))
-    r = np.sqrt(rng.beta(n_x / 2.0, 2.0, n))
-    out = np.empty((n, n_x))
-    for i in range(n):
-        norm = 0.0
-        for a in range(n_x):
-            norm += z[i, a] * z[i, a]
-        norm = np.sqrt(norm)
-        for a in range(n_x):
-            acc = 0.0
-            for b in range(n_x):
-                acc += z[i, b] * (r[i] / norm) * d[a, b]
-            out[i, a] = x[idx[i], a] + h * acc
-    return out
-
-
-def regularized(particles, weights, rng, scheme: str = "systematic", bandwidth=None):
-    """Regularized resampling on the numba backend (see :func:`pfbench.resampling.regularized`)."""
-    from .. import resampling as ref
-
-    x, w, d, h = ref.regularization_setup(particles, weights, bandwidth)
-    idx = resample(scheme, w, rng)
-    return _regularized_jitter(x, idx, d, h, rng)
