@@ -271,9 +271,6 @@ def merge_gather(work, settings, step):
     u = step.u
     strat = settings.scheme == _STRATIFIED
     ub = fw[0, i0:i1]
-    asir_rows = fw.shape[0] > 3
-    lam_src = fw[4] if asir_rows else fw[2]
-    lam_dst = fw[3] if asir_rows else fw[2]
     with_lam = step.first
     anc = work.iwork[:n]
     pos = fw[2]
@@ -286,7 +283,6 @@ def merge_gather(work, settings, step):
     ab = anc[i0:i1]  # the block's outputs from 0: k = i - i0
     pb = pos[i0:i1]
     db = dst[i0:i1]
-    lb = lam_dst[i0:i1]
     for k in range(nb):
         ab[k] = j0
     scale = n / total
@@ -330,7 +326,11 @@ def merge_gather(work, settings, step):
             for c in range(n_x):
                 db[k, c] = src[_nonneg(a), c]
             if with_lam:
-                lb[k] = lam_src[_nonneg(a)]
+                ab[k] = a
+    if with_lam and fw.shape[0] > 3:  # ASIR's first stage: its log-likelihoods follow the particles
+        # (a loop of its own: the two rows used inside the gather made every loop here slower)
+        for k in range(nb):
+            fw[3, i0 + k] = fw[4, _nonneg(ab[k])]
 
 
 @njit(nogil=True)
