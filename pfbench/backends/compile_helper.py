@@ -12,11 +12,12 @@ disk cache, :func:`pfbench.backends.numba_backend.native_addresses` calls :func:
 Python (``python -c`` with this process's import path, so it imports the same pfbench and model
 module) is handed the model class (by module and name), the kernel family, the tile layout and
 the functions' names and argument types, and compiles them into the same disk cache
-(:mod:`pfbench.backends.cache`) while this process compiles the driver, then waits for it, and this process then loads the functions from disk. What stays here is the
-caller's choice (``here`` of ``native_addresses``): the particle kernel hands the helper pass A,
-the Kalman driver its step math, the MPF driver the model's functions and the wrappers that call
-them (keeping the model-free steps that balance the two cores), a guided run the wrappers of the
-model's proposal and weight.
+(:mod:`pfbench.backends.cache`) while this process compiles the driver, then waits for it and loads
+the functions from disk. What stays here is the caller's choice (``here`` of
+``native_addresses``): the particle kernel hands the helper pass A and the merge, the Kalman driver
+its step math, the MPF driver the model's functions and the wrappers that call them (keeping the
+model-free steps that balance the two cores), a guided run the wrappers of the model's proposal
+and weight.
 
 The helper only ever saves time. Whatever goes wrong there (the model's module cannot be imported
 in a new process, a compile error, a crash, a kill) leaves no cache entry, and this process

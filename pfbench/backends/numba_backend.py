@@ -74,7 +74,8 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
                      ("_pass_b", pass_types(work, step), numba.types.none)]
             if mod._SCHEME in (-1, Scheme.SYSTEMATIC, Scheme.STRATIFIED):  # the merge branch (-1: any)
                 calls.append(("_merge_gather", pass_types(work, settings, step), numba.types.none))
-            found = native_addresses(model, "particle", mod, driver, args, calls, here=("_pass_b", "_merge_gather"),
+            # a cold start: the driver and pass B here, pass A and the merge in the helper (balanced)
+            found = native_addresses(model, "particle", mod, driver, args, calls, here=("_pass_b",),
                                      f_tiles=column_major_tiles(model))
             return found + [0] * (3 - len(found))  # an index scheme's kernel never calls the merge
 
