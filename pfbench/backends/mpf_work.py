@@ -81,6 +81,12 @@ class Outputs(NamedTuple):
     degen: np.ndarray
 
 
+def outputs(n_steps: int, n_x: int) -> Outputs:
+    """Zeroed :class:`Outputs` of a run of ``n_steps`` (M) steps."""
+    M = n_steps
+    return Outputs(np.zeros((M, n_x)), np.zeros((M, n_x, n_x)), np.zeros(M), np.zeros(M), np.zeros(M, np.bool_))
+
+
 class Conditioning(NamedTuple):
     """The x^n sampling and conditioning: noise z (n, d_n); A^n P (n, d_n, d_l), N = A^n P A^n' + Q^n
     and its Cholesky factor L (n, d_n, d_n); scratch w (d_n,), V (d_n, d_l)."""

@@ -129,13 +129,13 @@ def _raised_in_parallel(exc: SystemError) -> BaseException:
 
 
 # --------------------------------------------------------------------------- the MPF family
-def run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen) -> None:
+def run_mpf(model, p, rng, xn, s, u, scheme, out) -> None:
     """The numba MPF recursion ([Schon2005] Alg. 1; :func:`pfbench.filters.marginalized.run_mpf`) from
     the prior draws ``xn`` of x^n (None: every state linear, one Kalman/EKF recursion); ``s``:
-    :func:`pfbench.filters.marginalized.structure`; fills the outputs in place."""
+    :func:`pfbench.filters.marginalized.structure`; fills ``out``
+    (:class:`pfbench.backends.mpf_work.Outputs`) in place."""
     u = np.ascontiguousarray(u)  # its rows are then the C arrays _run_calls types
     st = mpf_work.structure_group(s)
-    out = mpf_work.Outputs(est, cov, ess, inc, degen)
     work = mpf_work.work_arrays(xn, int(s["d_l"]), st.meas.yw.shape[1])
     if s["d_n"] == 0:
         mod = build("mpf", model, None)

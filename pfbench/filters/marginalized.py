@@ -57,6 +57,7 @@ import time
 import numpy as np
 
 from .. import resampling as _resampling
+from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
@@ -375,8 +376,10 @@ def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
 
 
 # --------------------------------------------------------------------------- drivers
-def _run_numpy(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
-    """The NumPy reference driver (vectorised over particles; one Python loop over steps)."""
+def _run_numpy(model, p, rng, n, s, u, scheme, out) -> None:
+    """The NumPy reference driver (vectorised over particles; one Python loop over steps), filling
+    ``out`` (:class:`pfbench.backends.mpf_work.Outputs`)."""
+    est, cov, ess, inc, degen = out.est, out.cov, out.ess, out.inc, out.degen
     cls = type(model)
     cl_transition, cl_observation, cl_constrain = cls.cl_transition, cls.cl_observation, cls.cl_constrain
     resample = _resampling.get(Scheme(scheme))
@@ -416,11 +419,11 @@ def _initial_xn(model, rng, n: int, p, idx_n) -> np.ndarray:
 _WARM: set = set()
 
 
-def _run_numba(model, p, rng, n, s, u, scheme, est, cov, ess, inc, degen) -> None:
+def _run_numba(model, p, rng, n, s, u, scheme, out) -> None:
     from ..backends import numba_backend
 
     xn = _initial_xn(model, rng, n, p, s["idx_n"]) if s["d_n"] else None  # in NumPy, as the reference
-    numba_backend.run_mpf(model, p, rng, xn, s, u, scheme, est, cov, ess, inc, degen)
+    numba_backend.run_mpf(model, p, rng, xn, s, u, scheme, out)
 
 
 def _warm_up(model, p, n, s, u, scheme) -> None:
@@ -433,8 +436,7 @@ def _warm_up(model, p, n, s, u, scheme) -> None:
         return
     n_x = model.n_x
     s1 = dict(s, yw=s["yw"][:1])
-    _run_numba(model, p, np.random.default_rng(0), min(n, 2), s1, u[:1], scheme, np.empty((1, n_x)),
-               np.empty((1, n_x, n_x)), np.empty(1), np.empty(1), np.zeros(1, np.bool_))
+    _run_numba(model, p, np.random.default_rng(0), min(n, 2), s1, u[:1], scheme, outputs(1, n_x))
     _WARM.add(key)
 
 
@@ -448,14 +450,13 @@ def _filter(model, y, u, *, n, backend, resampling, seed):
         n = 1
     rng = np.random.default_rng(seed_sequence(seed))
     M, n_x = y.shape[0], model.n_x
-    out = dict(est=np.zeros((M, n_x)), cov=np.zeros((M, n_x, n_x)), ess=np.zeros(M), inc=np.zeros(M),
-               degen=np.zeros(M, np.bool_))
+    out = outputs(M, n_x)
     p = model.params()
     if backend == "numba":
         _warm_up(model, p, n, s, u, scheme)
     run = _run_numba if backend == "numba" else _run_numpy
     t0 = time.perf_counter()
-    run(model, p, rng, n, s, u, scheme, out["est"], out["cov"], out["ess"], out["inc"], out["degen"])
+    run(model, p, rng, n, s, u, scheme, out)
     return s, n, out, time.perf_counter() - t0
 
 
@@ -498,7 +499,7 @@ def run_mpf(model, y, u=None, *, n_particles: int = 100, resampling: str = "syst
                         "same Kalman/EKF recursion, so one copy ran and N_p is ignored ([MultiPDF] "
                         "§5: the performance of MPF is independent of the number of particles)")
     return _result(out, elapsed, method="mpf", backend=backend, n_particles=n,
-                   n_resampled=out["inc"].shape[0] if s["d_n"] else 0, info=info)
+                   n_resampled=out.inc.shape[0] if s["d_n"] else 0, info=info)
 
 
 def run_kalman(model, y, u=None, *, backend: str = "numba") -> FilterResult:
@@ -516,17 +517,17 @@ def run_kalman(model, y, u=None, *, backend: str = "numba") -> FilterResult:
                 f"in its linear substructure, but {d_n} state(s) are nonlinear "
                 f"(linear_states = {tuple(model.linear_states)}); use method 'mpf'")
     s, _, out, elapsed = _filter(model, y, u, n=1, backend=backend, resampling="systematic", seed=0)
-    out["ess"][:] = np.nan
+    out.ess[:] = np.nan
     info = {"linear_states": [int(i) for i in s["idx_l"]], "whitened_measurement": s["whiten"]}
     return _result(out, elapsed, method="kalman", backend=backend, n_particles=0, n_resampled=0,
                    info=info)
 
 
 def _result(out, elapsed, *, method, backend, n_particles, n_resampled, info) -> FilterResult:
-    cov = out["cov"]
-    inc = out["inc"]
+    cov = out.cov
+    inc = out.inc
     return FilterResult(
-        estimates=out["est"], variances=np.diagonal(cov, axis1=1, axis2=2).copy(),
-        loglik=float(inc.sum()), loglik_increments=inc, ess=out["ess"], n_resampled=int(n_resampled),
-        degenerate=out["degen"], elapsed_s=elapsed, method=method, backend=backend, dtype="float64",
+        estimates=out.est, variances=np.diagonal(cov, axis1=1, axis2=2).copy(),
+        loglik=float(inc.sum()), loglik_increments=inc, ess=out.ess, n_resampled=int(n_resampled),
+        degenerate=out.degen, elapsed_s=elapsed, method=method, backend=backend, dtype="float64",
         n_particles=int(n_particles), n_filters=1, covariances=cov, info=info)
