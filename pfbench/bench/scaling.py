@@ -14,7 +14,7 @@ each after its own 3-step warm-up), and their speed-up is the median of the per-
 (:func:`pfbench.bench.timing.paired_ratio`): two medians taken one after the other can compare a
 fast phase of a shared machine with a slow one. Each time is a whole run, set-up included
 (allocating and first touching the work arrays, the block streams, the initial particles): at
-N_p = 10^6 that is about 13 ms, about one step on 1 thread. :func:`end_to_end` times what a caller
+large N_p that is about one step's time on 1 thread. :func:`end_to_end` times what a caller
 waits for, whole :func:`pfbench.run_filter` calls of a short run at large N_p on 1 and k threads,
 the case where a serial set-up caps the speed-up.
 """

@@ -1,7 +1,7 @@
 """``pfbench bench --sweep``: how a sweep's wall time falls with its number of workers.
 
 One sweep, a MultiPDF grid on Ob1 ([MultiPDF] §5: N_p = 100, 300, 1000, 3000 x N_f = 1, 2, 5,
-M = 1000 steps, numba; its tasks take 1 to 35 ms), is sized to take about ``seconds`` on one
+M = 1000 steps, numba; tasks of a few milliseconds), is sized to take about ``seconds`` on one
 worker: the runs are ``seconds`` over the time of one run measured here first (which also fills
 the kernel cache, so no timed sweep compiles). It then runs as ``pfbench sweep --workers W``,
 a fresh command into a fresh store, for every W of ``workers``, in rounds (every W once per
