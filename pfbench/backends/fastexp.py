@@ -30,7 +30,6 @@ division with a zero check that raises, and the vectoriser gives up on it.
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic, register_jitable
 
@@ -55,27 +54,16 @@ _HIGH = 710.0
 
 
 @intrinsic
-def _bits(typingctx, x):
-    """The int64 bit pattern of a float64 (a register move, vectorisable)."""
-    if x != types.float64:
+def bitcast(typingctx, x):
+    """The int64 bit pattern of a float64, or the float64 of an int64's bits (a register move,
+    vectorisable)."""
+    to = {types.float64: types.int64, types.int64: types.float64}.get(x)
+    if to is None:
         return None
 
     def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], ir.IntType(64))
-
-    return types.int64(types.float64), codegen
-
-
-@intrinsic
-def _from_bits(typingctx, k):
-    """The float64 whose bit pattern is the int64 ``k``."""
-    if k != types.int64:
-        return None
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], ir.DoubleType())
-
-    return types.float64(types.int64), codegen
+        return builder.bitcast(args[0], context.get_value_type(to))
+    return to(x), codegen
 
 
 @register_jitable
@@ -98,9 +86,9 @@ def exp_scalar(x):
     x = x if x > _LOW else _LOW
     x = x if x < _HIGH else _HIGH
     e, ks = _reduced(x)
-    k = _bits(ks) - _SHIFT_BITS
+    k = bitcast(ks) - _SHIFT_BITS
     k1 = k >> 1
-    return e * _from_bits((k1 + 1023) << 52) * _from_bits((k - k1 + 1023) << 52)
+    return e * bitcast((k1 + 1023) << 52) * bitcast((k - k1 + 1023) << 52)
 
 
 def exp_array(x) -> np.ndarray:

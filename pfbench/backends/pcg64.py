@@ -33,7 +33,7 @@ from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, overload, register_jitable
-from pfbench.backends.fastexp import _bits, _from_bits
+from pfbench.backends.fastexp import bitcast
 from numba.np.random._constants import (fi_double, fi_float, ki_double, ki_float, wi_double, wi_float,
                                         ziggurat_nor_inv_r, ziggurat_nor_inv_r_f, ziggurat_nor_r,
                                         ziggurat_nor_r_f)
@@ -170,7 +170,7 @@ def normals_into(gen, out):
             rabs = (r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF)
             # rabs < 2^52: the signed conversion is exact and cheap; the sign is flipped by bits, not
             # by a branch (a random sign mispredicts half the time)
-            x = _from_bits(_bits(np.float64(np.int64(rabs)) * wi_double[idx]) ^ (np.int64(r & np.uint64(1)) << 63))
+            x = bitcast(bitcast(np.float64(np.int64(rabs)) * wi_double[idx]) ^ (np.int64(r & np.uint64(1)) << 63))
             if rabs < ki_double[idx]:
                 break
             if idx == 0:  # the tail beyond r (rare: about 1 draw in 4000)
