@@ -11,7 +11,9 @@ Workers start once: a local worker imports pfbench and loads the spec's kernels 
 initializer, a Dask worker on its first unit, and then takes unit after unit. Each runs its
 filters on one thread; a local pool's (and a LocalCluster's) workers are also held to
 ``free cores / workers`` threads in all (:func:`pfbench.procs.worker_threads`), so no filter
-default, numba pool or BLAS library oversubscribes the machine.
+default, numba pool or BLAS library oversubscribes the machine. A remote cluster's workers, which
+pfbench did not start, each take usable cores // the Dask threads of all workers on their host
+(:func:`_share_host`).
 
 Work units
 ----------
@@ -396,10 +398,12 @@ def _threads() -> int:
     return int(min(numba.config.NUMBA_NUM_THREADS, thread_limit() or numba.config.NUMBA_NUM_THREADS))
 
 
-def _timed_unit(spec: dict, groups) -> tuple[list, float, dict]:
+def _timed_unit(spec: dict, groups, host_threads: dict | None = None) -> tuple[list, float, dict]:
     """Run the unit ``groups`` (``[(run, [config indices])]``): its records, its wall time and the
     journal's note of who ran it (``worker``), when (``start``, Unix time) and with how many
-    threads at most (``threads``)."""
+    threads at most (``threads``). ``host_threads``: on a Dask cluster, :func:`_host_threads`."""
+    if host_threads is not None:
+        _share_host(host_threads)
     _warm(spec)
     run = work(spec)[0]
     start, t1 = time.time(), time.perf_counter()
@@ -408,6 +412,36 @@ def _timed_unit(spec: dict, groups) -> tuple[list, float, dict]:
         recs += run(spec, r, cis)
     return recs, time.perf_counter() - t1, {"worker": f"pid-{os.getpid()}", "start": round(start, 3),
                                            "threads": _threads()}
+
+
+def _host_threads(info: dict) -> dict:
+    """Dask worker address -> the Dask threads of every worker on its host, from the scheduler's
+    ``scheduler_info()``."""
+    workers = info.get("workers", {})
+    per_host: dict = {}
+    for w in workers.values():
+        per_host[w.get("host")] = per_host.get(w.get("host"), 0) + int(w.get("nthreads") or 1)
+    return {address: per_host[w.get("host")] for address, w in workers.items()}
+
+
+def _share_host(host_threads: dict) -> None:
+    """Give a Dask worker process that has no thread budget (:func:`pfbench.procs.thread_limit`;
+    one that pfbench started has one) its share of its host: usable cores // the Dask threads of
+    every worker on the host (``host_threads``; a worker that joined later: its own threads), as
+    each of those threads may run a filter at once. Without it every task's filter would ask for
+    all the host's free cores and the tasks of one host would oversubscribe it."""
+    from ..procs import THREADS_ENV, thread_limit, usable_cores
+
+    if thread_limit() is not None:
+        return
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):  # not on a Dask worker
+        return
+    sharing = host_threads.get(worker.address) or getattr(worker, "nthreads", 1)
+    os.environ[THREADS_ENV] = str(max(1, usable_cores() // max(1, int(sharing))))
 
 
 def _run_here(spec, planner, done, max_units):
@@ -496,7 +530,12 @@ def _run_dask(spec, planner, workers, scheduler, done, max_units):
                                    env=thread_env(worker_threads(workers)))
             client = Client(cluster)
         try:
-            n_workers = max(1, len(client.scheduler_info().get("workers", {})) or workers)
+            try:
+                info = client.scheduler_info(n_workers=-1)  # every worker (newer Dask returns 5 by default)
+            except TypeError:  # an older Dask: every worker anyway
+                info = client.scheduler_info()
+            n_workers = max(1, len(info.get("workers", {})) or workers)
+            shares = _host_threads(info)
 
             def result(fut):
                 out = fut.result()
@@ -504,7 +543,7 @@ def _run_dask(spec, planner, workers, scheduler, done, max_units):
                 return out
 
             _drive(planner(n_workers), n_workers,
-                   lambda groups: client.submit(_timed_unit, spec, groups, pure=False),
+                   lambda groups: client.submit(_timed_unit, spec, groups, shares, pure=False),
                    lambda futs: wait(futs, return_when="FIRST_COMPLETED").done, result, done, max_units)
         finally:
             client.close()

@@ -1,5 +1,6 @@
 """pfbench sweep: determinism across workers/executors, resume, corruption, CLI."""
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -367,3 +368,24 @@ def test_grid_file_model_spec_param_texts_and_unknown_keys(tmp_path):
         grid.write_text(text)
         r = CliRunner().invoke(main, ["sweep", "--grid", str(grid), "--out", str(tmp_path / "h.jsonl")])
         assert r.exit_code == 2 and needle in r.stderr and "\n" not in r.stderr.strip()
+
+
+def test_a_remote_dask_worker_takes_its_share_of_the_host(tmp_path):
+    """Workers that pfbench did not start (no thread budget), two processes of two Dask threads on
+    this host: each task's filter may use usable cores // 4 threads (at least 1), as the journal
+    records. Catches: remote workers left without a budget, whose filters would each ask for all
+    the host's cores (numba's pool: every core), and the host's threads not summed over workers."""
+    pytest.importorskip("distributed")
+    from distributed import LocalCluster
+
+    from pfbench.procs import THREADS_ENV, usable_cores
+
+    if usable_cores() < 2:
+        pytest.skip("one usable core: every share is one thread")
+    env = {k: v for k, v in os.environ.items() if k not in (THREADS_ENV, "NUMBA_NUM_THREADS")}
+    with LocalCluster(n_workers=2, threads_per_worker=2, processes=True, host="127.0.0.1",
+                      dashboard_address=None, env=env) as cluster:
+        run_sweep(_spec(runs=2), tmp_path / "r.jsonl", workers=2, executor="dask",
+                  scheduler=cluster.scheduler_address, progress=False)
+    chunks = Store.read(tmp_path / "r.jsonl").chunks
+    assert chunks and {c["threads"] for c in chunks} == {max(1, usable_cores() // 4)}
