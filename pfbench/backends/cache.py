@@ -305,8 +305,8 @@ _INSTALLED = False
 
 
 def install() -> None:
-    """Put the package-keyed locator first in numba's list, keep conditional moves in loops
-    (:mod:`pfbench.backends.codegen`) and defer interrupts during compiles
+    """Put the package-keyed locator first in numba's list, apply the compile settings of
+    :mod:`pfbench.backends.codegen` and defer interrupts during compiles
     (:mod:`pfbench.backends.interrupts`) (idempotent)."""
     global _INSTALLED
     if _INSTALLED:
@@ -317,10 +317,11 @@ def install() -> None:
     classes = impl._locator_classes
     if not any(getattr(c, "__name__", "") == "PackageKeyedLocator" for c in classes):
         classes.insert(0, _locator_class())
-    from .codegen import keep_selects
+    from .codegen import constant_shape_errors, keep_selects
     from .interrupts import defer_during_compiles
 
     keep_selects()
+    constant_shape_errors()
     defer_during_compiles()
     _INSTALLED = True
 
