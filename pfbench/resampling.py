@@ -2,8 +2,8 @@
 
 Every scheme takes (possibly unnormalised) non-negative ``weights`` of length N and a
 ``numpy.random.Generator`` and returns N ancestor indices (int64, sorted ascending), except
-:func:`regularized`, which returns new particles. The numba backend has loop versions of the
-other schemes in :mod:`pfbench.backends.numba_resampling`; both consume the generator in the
+:func:`regularized`, which returns new particles. The numba backend has loop versions of
+every scheme but :func:`regularized` in :mod:`pfbench.backends.numba_resampling`; both consume the generator in the
 same documented amounts, so under the same generator state they return identical indices:
 
 =====================  ======================================  =========================
