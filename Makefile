@@ -49,7 +49,8 @@ test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests
 
 # Benchmarks: pytest-benchmark suite plus `pfbench bench --all` (engine vs the C reference, the
-# floor and `particles`; cold/warm start per method; cost vs N_p; busy machine): JSON + PNG under
+# floor and `particles`; cold/warm start per method; cost vs N_p; busy machine; sweep; whole short
+# runs at large N_p): JSON + PNG under
 # results/bench/, then docs/PERFORMANCE.md regenerated from those JSON files and the kept
 # docs/performance_notes.md. The `particles` comparison runs in its own environment
 # (.venv-particles) because `particles` pins an older NumPy; see scripts/bench_particles.py.

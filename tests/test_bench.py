@@ -278,36 +278,22 @@ def test_scaling_pairs_the_thread_runs_within_rounds(monkeypatch):
 
 
 
-def test_end_to_end_pairs_whole_runs_and_splits_off_the_quiet_rounds(monkeypatch):
+def test_end_to_end_pairs_whole_runs_and_splits_off_the_quiet_rounds(scripted_end_to_end):
     """``end_to_end`` times whole run_filter calls, 1 thread then k threads in each round, and gives
-    the speed-up over all rounds and over the quiet ones. Scripted: run_filter calls take no time,
-    the clock advances by the scripted seconds (1 thread 10, 30, 10; 2 threads 5, 10, 10) and
-    other processes are busy in round 2 only. Catches a speed-up that is a ratio of medians, the
-    engines not alternating, or a busy round kept among the quiet ones."""
-    import time as _time
-
-    from pfbench import filters
-
-    clock = [0.0]
-    script = {1: [10.0, 30.0, 10.0], 2: [5.0, 10.0, 10.0]}
-    calls = []
-
-    def fake_run(model, y, u, seed=0, n_threads=None, **kw):
-        if y.shape[0] == 3:  # the warm-up
-            return None
-        calls.append(n_threads)
-        clock[0] += script[n_threads][sum(1 for c in calls if c == n_threads) - 1]
-
-    busy = iter([0.0, 0.0, 0.0, 100.0, 100.0, 100.0])  # round 2: others used every core
-    monkeypatch.setattr(filters, "run_filter", fake_run)
-    monkeypatch.setattr(_time, "perf_counter", lambda: clock[0])
-    monkeypatch.setattr(_time, "process_time", lambda: 0.0)
-    monkeypatch.setattr(scaling, "_busy_s", lambda: next(busy))
-    res = scaling.end_to_end(n=1000, steps=12, rounds=3, threads=2)
-    assert calls == [1, 2] * 3
+    the speed-up over all rounds and over the quiet ones, the speed-up inside the kernel call and
+    the time outside it. Catches a speed-up that is a ratio of medians, the engines not
+    alternating, a busy round kept among the quiet ones, the kernel's times read from the wrong
+    runs, or a target verdict that does not follow the measured speed-up."""
+    res = scripted_end_to_end()
     assert res["speedup"] == pytest.approx(2.0) and res["speedup_rounds"] == pytest.approx([1.0, 3.0])
     assert res["quiet_rounds"] == 2 and res["quiet_speedup"] == pytest.approx(1.5)  # rounds 1 and 3
-    assert "speed-up 2.00x" in scaling.end_to_end_text(res)
+    assert res["kernel_speedup"] == pytest.approx(2.25) and res["kernel_speedup_rounds"] == pytest.approx([1.0, 4.0])
+    assert res["median_outside_s_1_thread"] == pytest.approx(1.0)  # 1, 2, 1
+    assert res["median_outside_s_threads"] == pytest.approx(1.0)  # 1, 3, 1
+    assert res["kind"] == "bench_end_to_end" and res["targets"][0]["verdict"] == "meets"  # 2.0 >= 1.8
+    text = scaling.end_to_end_text(res)
+    assert "speed-up 2.00x" in text and "in the kernel (elapsed_s): speed-up 2.25x" in text
+    assert "(target >= 1.8x: meets)" in text
 
 
 # --------------------------------------------------------------------------- startup

@@ -177,12 +177,12 @@ def test_kept_part_is_verbatim_and_last(tmp_path):
     assert page.count("Kept *exactly*: trailing spaces   \n") == 1
 
 
-def test_every_section_states_machine_date_sha_and_command(monkeypatch, tmp_path):
+def test_every_section_states_machine_date_sha_and_command(monkeypatch, tmp_path, scripted_end_to_end):
     res = tmp_path / "results"
     for name, data in (("busy.json", busy_json(monkeypatch)), ("scaling.json", scaling_json(monkeypatch)),
                        ("startup.json", startup_json(monkeypatch)), ("bench.json", bench_json()),
                        ("gpu.json", gpu_json()), ("pytest-benchmark.json", pytest_json()),
-                       ("sweep.json", sweep_json())):
+                       ("sweep.json", sweep_json()), ("end_to_end.json", scripted_end_to_end())):
         _write(res, name, data)
         data = json.loads((res / name).read_text())
         kind = document.KINDS[document.kind_of(data)]
@@ -283,7 +283,8 @@ def test_cli_document_alone_runs_no_benchmark_and_is_reproducible(monkeypatch, t
     assert r.exit_code == 0, r.output
     page = (tmp_path / "docs" / "PERFORMANCE.md").read_text()
     assert page == document.render("results/bench", "docs/performance_notes.md")
-    assert "not measured: bench, bench_startup, bench_scaling, bench_sweep, bench_gpu, pytest_benchmark" in r.output
+    assert ("not measured: bench, bench_startup, bench_scaling, bench_sweep, bench_end_to_end, bench_gpu, "
+            "pytest_benchmark") in r.output
     assert CliRunner().invoke(main, ["bench", "--document"]).exit_code == 0
     assert (tmp_path / "docs" / "PERFORMANCE.md").read_text() == page
 
@@ -326,3 +327,15 @@ def test_sweep_table_shows_the_paired_speedup(tmp_path):
     _write(tmp_path / "r", "sweep.json", sweep_json())
     sec = _section(document.render(tmp_path / "r", _notes(tmp_path)), "A sweep on 1 and on W workers")
     assert "| 2 | 8.00 | 1.50x | 1.00x-2.00x | 0.750 |" in sec
+
+
+def test_end_to_end_table_shows_medians_and_both_speedups(scripted_end_to_end, tmp_path):
+    """The rows give the median whole-run, in-kernel and outside times in ms, the speed-ups the
+    stored medians of per-round ratios. Catches means for medians, the two speed-ups swapped, or
+    the target's verdict dropped."""
+    _write(tmp_path / "r", "end_to_end.json", scripted_end_to_end())  # 1 thread median 10 s (mean 16.7)
+    sec = _section(document.render(tmp_path / "r", _notes(tmp_path)), "Whole short runs at large N_p")
+    assert "| 1 | 10000 | 9000 | 1000 |" in sec
+    assert "| 2 | 10000 | 7000 | 1000 |" in sec
+    assert "whole runs 2.00x (1.00x-3.00x), in the kernel 2.25x (1.00x-4.00x)" in sec
+    assert "2 of 3 rounds quiet" in sec and "meets" in sec

@@ -345,7 +345,8 @@ def main_text(res: dict) -> list[str]:
 def _section_paths(out_path) -> dict:
     d = Path(out_path).parent
     return {"bench": Path(out_path), "startup": d / "startup.json", "scaling": d / "scaling.json",
-            "scaling_png": d / "scaling.png", "busy": d / "busy.json", "sweep": d / "sweep.json"}
+            "scaling_png": d / "scaling.png", "busy": d / "busy.json", "sweep": d / "sweep.json",
+            "end_to_end": d / "end_to_end.json"}
 
 
 @click.command()
@@ -360,11 +361,13 @@ def _section_paths(out_path) -> dict:
               "2 x (cores) busy processes: busy.json beside --out.")
 @click.option("--sweep", "sweep", is_flag=True, help="Only (or also) a sweep's speed-up on 1, 2 and all cores' "
               "workers: sweep.json beside --out.")
+@click.option("--end-to-end", "end_to_end", is_flag=True, help="Only (or also) whole run_filter calls at "
+              "N_p = 10^6, M = 12 on 1 and 2 threads, set-up included: end_to_end.json beside --out.")
 @click.option("--sweep-workers", default=None, metavar="W[,W...]",
               help="Worker counts of --sweep (default 1, 2 and the usable cores; 1 is always run).")
 @click.option("--sweep-seconds", type=click.FloatRange(min=1.0), default=None,
               help="Size of the --sweep sweep in seconds on 1 worker (default 60; 10 with --quick).")
-@click.option("--all", "run_all", is_flag=True, help="Main, startup, scaling, busy and sweep sections.")
+@click.option("--all", "run_all", is_flag=True, help="Main, startup, scaling, busy, sweep and end-to-end sections.")
 @click.option("--cold-repeats", type=click.IntRange(1, 20), default=1, show_default=True,
               help="Cold starts per method (each on a fresh, empty cache; expensive).")
 @click.option("--no-particles", is_flag=True, help="Skip the `particles` library comparison.")
@@ -374,10 +377,11 @@ def _section_paths(out_path) -> dict:
 @click.option("--document", is_flag=True, help="Then regenerate docs/PERFORMANCE.md from every JSON beside "
               "--out and docs/performance_notes.md; alone, run no benchmark (the page from existing results).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object by section.")
-def bench(repeats, quick, scaling, startup, busy, sweep, sweep_workers, sweep_seconds, run_all, cold_repeats,
-          no_particles, no_c, out_path, document, as_json):
+def bench(repeats, quick, scaling, startup, busy, sweep, end_to_end, sweep_workers, sweep_seconds, run_all,
+          cold_repeats, no_particles, no_c, out_path, document, as_json):
     """Time the engine against the floor, the C reference and the `particles` library; cold/warm
-    start per method (--startup); cost vs N_p (--scaling); regenerate docs/PERFORMANCE.md (--document)."""
+    start per method (--startup); cost vs N_p (--scaling); whole short runs at large N_p
+    (--end-to-end); regenerate docs/PERFORMANCE.md (--document)."""
     from ..io import to_json, write_json
     from ..resources import check_writable, path_error
 
@@ -390,10 +394,10 @@ def bench(repeats, quick, scaling, startup, busy, sweep, sweep_workers, sweep_se
 
             raise InputError(f"--sweep-workers must be integers >= 1, got {min(sweep_workers)}")
     if run_all:
-        sections = ["bench", "startup", "scaling", "busy", "sweep"]
-    elif scaling or startup or busy or sweep:
-        sections = [s for s, on in (("startup", startup), ("scaling", scaling), ("busy", busy), ("sweep", sweep))
-                    if on]
+        sections = ["bench", "startup", "scaling", "busy", "sweep", "end_to_end"]
+    elif scaling or startup or busy or sweep or end_to_end:
+        sections = [s for s, on in (("startup", startup), ("scaling", scaling), ("busy", busy), ("sweep", sweep),
+                                    ("end_to_end", end_to_end)) if on]
     elif document and not quick:  # the page alone, from the results already there
         sections = []
     else:
@@ -459,6 +463,12 @@ def bench(repeats, quick, scaling, startup, busy, sweep, sweep_workers, sweep_se
         res = run_sweep_scaling(seconds=seconds, workers=sweep_workers, rounds=max(1, min(repeats, 3)))
         save("sweep", res)
         lines += ["", "a sweep on 1 worker and on several:", *sweep_text(res), f"-> {paths['sweep']}"]
+    if "end_to_end" in sections:
+        from .scaling import end_to_end_text, run_end_to_end
+
+        res = run_end_to_end(rounds=3 if quick else max(repeats, 9))
+        save("end_to_end", res)
+        lines += ["", "whole runs, set-up included:", end_to_end_text(res), f"-> {paths['end_to_end']}"]
     if document:
         res = doc.write(results_dir=paths["bench"].parent)
         missing = [k for k, files in res["kinds"].items() if not files]

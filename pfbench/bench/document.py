@@ -350,6 +350,27 @@ def render_sweep(d: dict) -> list[str]:
     return out
 
 
+def render_end_to_end(d: dict) -> list[str]:
+    """``end_to_end.json`` (``bench_end_to_end``, :func:`pfbench.bench.scaling.run_end_to_end`):
+    whole runs on 1 and k threads, and the part of each inside the kernel call (``elapsed_s``)."""
+    k = d["threads"]
+    out = [provenance_line(d), "",
+           f"Ob1 bootstrap, numba float64, N_p = {_pow10(d['particles'])}, M = {d['steps']}: whole "
+           f"`run_filter` calls (what a caller waits for) on 1 and {k} threads, back to back in each of "
+           f"{d['rounds']} rounds; medians, the speed-ups the median of the per-round ratios, the rounds' range "
+           "beside. \"In the kernel\" is the run's `elapsed_s`; the rest is set-up and checks outside it:", ""]
+    rows = [["1", num(float(d["median_s_1_thread"]) * 1e3), num(median(d["kernel_s_1_thread"]) * 1e3),
+             num(float(d["median_outside_s_1_thread"]) * 1e3)],
+            [str(k), num(float(d["median_s_threads"]) * 1e3), num(median(d["kernel_s_threads"]) * 1e3),
+             num(float(d["median_outside_s_threads"]) * 1e3)]]
+    out += table(["threads", "whole run, ms", "in the kernel, ms", "outside it, ms"], rows)
+    out += ["", f"Speed-up: whole runs {ratio(d['speedup'])} ({span_pair(d['speedup_rounds'])}), in the kernel "
+            f"{ratio(d['kernel_speedup'])} ({span_pair(d['kernel_speedup_rounds'])}); "
+            f"{d['quiet_rounds']} of {d['rounds']} rounds quiet (other processes under 5 % CPU)."]
+    out += _targets(d.get("targets"))
+    return out
+
+
 def span_pair(pair) -> str:
     """A (low, high) ratio range, or ``-``."""
     return "-" if not pair else f"{ratio(pair[0])}-{ratio(pair[1])}"
@@ -452,6 +473,8 @@ KINDS = {k.name: k for k in (
     Kind("bench_scaling", "Cost per particle-step against N_p", "pfbench bench --scaling", render_scaling),
     Kind("bench_busy", "Default thread count on a busy machine", "pfbench bench --busy", render_busy),
     Kind("bench_sweep", "A sweep on 1 and on W workers", "pfbench bench --sweep", render_sweep),
+    Kind("bench_end_to_end", "Whole short runs at large N_p on 1 and 2 threads", "pfbench bench --end-to-end",
+         render_end_to_end),
     Kind("bench_gpu", "GPU, `--backend cupy`", "OUT=results/bench bash scripts/gpu_check.sh", render_gpu,
          "on a machine with a CUDA GPU and CuPy"),
     Kind("pytest_benchmark", "pytest-benchmark suite", PYTEST_COMMAND, render_pytest),

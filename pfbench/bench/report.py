@@ -35,6 +35,7 @@ TARGETS = {
     "threads_speedup_1e5": Target("numba all threads vs 1 thread, N_p = 10^5 (speed-up)", ">=", 1.7),
     "float32_speedup_1e5": Target("numba float32 vs float64, N_p = 10^5 (speed-up)", ">=", 1.3),
     "ns_1e6_over_1e3": Target("numba 1 thread ns/p-step at N_p = 10^6 / at N_p = 10^3", "<=", 1.3),
+    "end_to_end_speedup": Target("whole run_filter calls, N_p = 10^6, M = 12: 2 threads vs 1 (speed-up)", ">=", 1.8),
     "sweep_efficiency": Target("sweep on W workers vs 1 worker: speed-up / W", ">=", 0.8),
     "cold_start_s": Target("cold first `pfbench run` (empty caches), wall time", "<", 5.0, " s"),
 }
