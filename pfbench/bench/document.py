@@ -359,10 +359,9 @@ def render_end_to_end(d: dict) -> list[str]:
            f"`run_filter` calls (what a caller waits for) on 1 and {k} threads, back to back in each of "
            f"{d['rounds']} rounds; medians, the speed-ups the median of the per-round ratios, the rounds' range "
            "beside. \"In the kernel\" is the run's `elapsed_s`; the rest is set-up and checks outside it:", ""]
-    rows = [["1", num(float(d["median_s_1_thread"]) * 1e3), num(median(d["kernel_s_1_thread"]) * 1e3),
-             num(float(d["median_outside_s_1_thread"]) * 1e3)],
-            [str(k), num(float(d["median_s_threads"]) * 1e3), num(median(d["kernel_s_threads"]) * 1e3),
-             num(float(d["median_outside_s_threads"]) * 1e3)]]
+    rows = [[label, *(num(float(v) * 1e3) for v in (d[f"median_s_{of}"], median(d[f"kernel_s_{of}"]),
+                                                   d[f"median_outside_s_{of}"]))]
+            for label, of in (("1", "1_thread"), (str(k), "threads"))]
     out += table(["threads", "whole run, ms", "in the kernel, ms", "outside it, ms"], rows)
     out += ["", f"Speed-up: whole runs {ratio(d['speedup'])} ({span_pair(d['speedup_rounds'])}), in the kernel "
             f"{ratio(d['kernel_speedup'])} ({span_pair(d['kernel_speedup_rounds'])}); "
