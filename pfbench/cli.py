@@ -12,7 +12,10 @@ Error policy (one place, :meth:`PfbenchGroup.main`):
   exit code 2 -- a safety net: the places that write user-named files raise a DataError already.
   An OSError without a file name, with another errno or on a file inside the package is a bug;
 * Ctrl-C ends with exit code 130;
-* anything else is a bug in pfbench: its traceback and exit code 1.
+* anything else is a bug in pfbench: its traceback and exit code 1;
+* a crash of compiled code (a segmentation fault: a model indexing out of its arrays, which numba
+  does not check, or a bug) prints the Python stack of every thread (:mod:`faulthandler`), so it
+  says which call it came from instead of ending the process in silence.
 
 Subcommand groups of the subsystems (``pfbench mcu``, ``pfbench sweep``, ``pfbench bench``) live
 next to their code and are added here. Every ``KEY=VALUE`` flag is read by
@@ -20,6 +23,7 @@ next to their code and are added here. Every ``KEY=VALUE`` flag is read by
 """
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import math
 import os
@@ -88,6 +92,10 @@ class PfbenchGroup(click.Group):
 
     def main(self, args=None, prog_name=None, **extra):  # noqa: D401
         self.debug = os.environ.get(DEBUG_ENV, "") not in ("", "0")
+        try:
+            faulthandler.enable(file=sys.__stderr__)
+        except (AttributeError, ValueError, OSError):  # no standard error to write to
+            pass
         try:
             rv = super().main(args=args, prog_name=prog_name, standalone_mode=False, **extra)
         except click.exceptions.NoArgsIsHelpError as exc:

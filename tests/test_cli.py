@@ -423,3 +423,23 @@ def test_run_truth_and_filter_streams_are_apart_and_out_writes_tidy_steps(tmp_pa
 def test_run_and_reproduce_refuse_bad_values_in_one_line(args, needle):
     r = CliRunner().invoke(main, args)
     assert r.exit_code == 2 and needle in r.output and "Traceback" not in r.output
+
+
+def test_a_crash_in_compiled_code_names_the_call():
+    """A segmentation fault (here a read at address 0, as a model indexing out of its arrays in
+    compiled code would do) prints the Python stack of the command that crashed instead of ending
+    in silence; catches the CLI not enabling faulthandler."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import ctypes\n"
+            "from pfbench import cli\n"
+            "@cli.main.command('crash_here')\n"
+            "def crash_here():\n"
+            "    ctypes.string_at(0)\n"
+            "cli.main(['crash_here'])\n")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONFAULTHANDLER"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode != 0
+    assert "Segmentation fault" in r.stderr and "crash_here" in r.stderr, r.stderr[-500:]
