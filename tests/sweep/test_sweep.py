@@ -168,7 +168,7 @@ def test_sigterm_then_resume(tmp_path):
         time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=30)
-    assert proc.returncode == 130, err.decode()[-500:]
+    assert proc.returncode == 130, err.decode()[-4000:]  # a crash: the stacks faulthandler printed
     st = Store.read(out)
     assert 0 < len(st.records) < 600
     spec = st.spec
