@@ -11,9 +11,16 @@ every load from the disk cache, hold SIGINT and SIGTERM back: while the main thr
 a signal is only recorded; when the lock is released (the compile complete and consistent) the
 previous handlers are restored and called, so the interrupt arrives, seconds late at most, in
 ordinary Python code. Other threads need nothing: signals are handled in the main thread only.
+
+:func:`held` does the same around a call of compiled code that takes NumPy Generators: numba
+unboxes a Generator by calling ``ctypes.cast`` (Python code, where a pending signal's handler runs)
+and does not check that call for an exception, so an interrupt raised there ended the process with
+a segmentation fault. Compiled code never runs a handler anyway, so holding the signals back until
+the call returns delays nothing.
 """
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
 
@@ -35,6 +42,43 @@ def _deliver(saved: dict, pending: list) -> None:
             signal.raise_signal(signum)  # the default action, now that the handler is restored
 
 
+def _hold() -> None:
+    """Start holding SIGINT and SIGTERM back (main thread only; nests)."""
+    if threading.current_thread() is threading.main_thread():
+        if _STATE["depth"] == 0:  # (a handler not set from Python, None, is left alone)
+            _STATE["saved"] = {s: signal.signal(s, _record) for s in SIGNALS
+                               if signal.getsignal(s) is not None}
+        _STATE["depth"] += 1
+
+
+def _let_go(then=None) -> None:
+    """End one :func:`_hold`, call ``then`` (the compiler lock's release), and at the outermost
+    restore the handlers and deliver the signals that arrived meanwhile."""
+    deliver = None
+    if threading.current_thread() is threading.main_thread() and _STATE["depth"] > 0:
+        _STATE["depth"] -= 1
+        if _STATE["depth"] == 0:
+            saved, _STATE["saved"] = _STATE["saved"], None
+            for s, handler in saved.items():
+                signal.signal(s, handler)
+            deliver, _STATE["pending"] = (saved, _STATE["pending"]), []
+    if then is not None:
+        then()
+    if deliver:
+        _deliver(*deliver)
+
+
+@contextlib.contextmanager
+def held():
+    """SIGINT and SIGTERM held back while the block runs in the main thread, and delivered when
+    it ends (see the module docstring)."""
+    _hold()
+    try:
+        yield
+    finally:
+        _let_go()
+
+
 def defer_during_compiles() -> bool:
     """Wrap numba's global compiler lock so the main thread defers SIGINT/SIGTERM while it holds
     the lock (idempotent). Returns whether the lock now defers them (False: a numba whose lock
@@ -51,26 +95,8 @@ def defer_during_compiles() -> bool:
 
     def deferring_acquire():
         acquire()
-        if threading.current_thread() is threading.main_thread():
-            if _STATE["depth"] == 0:  # (a handler not set from Python, None, is left alone)
-                _STATE["saved"] = {s: signal.signal(s, _record) for s in SIGNALS
-                                   if signal.getsignal(s) is not None}
-            _STATE["depth"] += 1
+        _hold()
 
-    def deferring_release():
-        deliver = None
-        if threading.current_thread() is threading.main_thread() and _STATE["depth"] > 0:
-            _STATE["depth"] -= 1
-            if _STATE["depth"] == 0:
-                saved, _STATE["saved"] = _STATE["saved"], None
-                for s, handler in saved.items():
-                    signal.signal(s, handler)
-                pending, _STATE["pending"] = _STATE["pending"], []
-                deliver = (saved, pending)
-        release()
-        if deliver and deliver[1]:
-            _deliver(*deliver)
-
-    lock.acquire, lock.release = deferring_acquire, deferring_release
+    lock.acquire, lock.release = deferring_acquire, lambda: _let_go(release)
     lock._pfbench_defers = True
     return True

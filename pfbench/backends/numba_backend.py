@@ -12,6 +12,7 @@ from ..methods import Estimate
 from ..procs import free_cores
 from ..resampling import Scheme
 from . import compile_helper, mpf_work, native_call, pcg64
+from .interrupts import held
 from .kernels import build, column_major_tiles
 from .particle_work import Settings, Step, outputs, pass_types, work_arrays
 
@@ -81,7 +82,9 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
 
         a, b, c = (int(v) for v in _call_addresses(driver, args, find))
         args = args[:-1] + (settings._replace(pass_a=a, pass_b=b, merge=c),)
-        if parallel:
+        with held():  # the generators' unboxing (interrupts.held)
+            if not parallel:
+                return driver(*args)
             k = min(int(n_threads or free_cores()), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
                 numba.set_num_threads(k)
@@ -89,8 +92,6 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
                     driver(*args)
                 except SystemError as exc:
                     raise _raised_in_parallel(exc) from None
-        else:
-            driver(*args)
 
 
 def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f_tiles: bool = False) -> list:
@@ -153,7 +154,9 @@ def run_mpf(model, p, rng, xn, s, u, scheme, out) -> None:
         return native_addresses(model, "mpf", mod, mod.run, args, [(name, *calls[name]) for name in mod.RUN_CALLS],
                                 here=_RUN_HERE)
 
-    mod.run(*args[:-1], _call_addresses(mod.run, args, find))
+    addresses = _call_addresses(mod.run, args, find)
+    with held():  # the generator's unboxing (interrupts.held)
+        mod.run(*args[:-1], addresses)
 
 
 #: (driver, its arguments' type fingerprints) -> the int64 entry addresses of its calls by address,
@@ -229,7 +232,8 @@ def run_guided(model, kind, p, rng, y, u, particles, out, settings):
     args = (p, rng, y, u, particles, out, settings)
     propose, weight = _call_addresses(driver, args, lambda: native_addresses(
         model, "guided", mod, driver, args, _model_calls(kind, p, y, u, particles.x, settings.n_noise)))
-    driver(*args[:-1], settings._replace(propose=int(propose), weight=int(weight)))
+    with held():  # the generator's unboxing (interrupts.held)
+        driver(*args[:-1], settings._replace(propose=int(propose), weight=int(weight)))
 
 
 def _model_calls(kind, p, y, u, x, n_noise) -> list:

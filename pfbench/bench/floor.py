@@ -35,6 +35,7 @@ import numpy as np
 
 from ..backends.cache import njit
 from ..backends.fastexp import exp_scalar
+from ..backends.interrupts import held
 from ..backends.pcg64 import fill_normals
 
 
@@ -111,11 +112,14 @@ def _memory_pass(x, m):
 
 
 def _median_ns(run, n: int, m: int, repeats: int) -> float:
+    """Median ns per particle-step of ``repeats`` calls of ``run``, each with the interrupts held
+    back (:func:`pfbench.backends.interrupts.held`: ``run`` may hand numba a generator)."""
     times = []
     for _ in range(max(int(repeats), 1)):
-        t0 = time.perf_counter()
-        run()
-        times.append(time.perf_counter() - t0)
+        with held():
+            t0 = time.perf_counter()
+            run()
+            times.append(time.perf_counter() - t0)
     return statistics.median(times) * 1e9 / (n * m)
 
 
@@ -123,11 +127,11 @@ def floor_ns(n: int, m: int, repeats: int, backend: str) -> float:
     """ns per particle-step of one normal draw + one exp (the irreducible work of a PF step)."""
     rng = np.random.default_rng(0)
     if backend == "numba":
-        _floor(rng, 8, 2)  # compile
+        _median_ns(lambda: _floor(rng, 8, 2), 8, 2, 1)  # compile
         return _median_ns(lambda: _floor(rng, n, m), n, m, repeats)
     if backend == "engine":
         e = np.empty(n)
-        _floor_engine(rng, 8, 2, e)
+        _median_ns(lambda: _floor_engine(rng, 8, 2, e), 8, 2, 1)  # compile
         return _median_ns(lambda: _floor_engine(rng, n, m, e), n, m, repeats)
 
     def run():
@@ -147,7 +151,8 @@ def breakdown_ns(n: int, m: int, repeats: int) -> dict:
     z = np.random.default_rng(1).standard_normal(n)
     x = np.ones(n)
     e = np.empty(n)
-    _normals(rng, 8, 2), _normals_engine(rng, 8, 2), _exps(z[:8], 2), _exps_engine(z[:8], 2, e), _memory_pass(x[:8].copy(), 2)  # compile
+    _median_ns(lambda: (_normals(rng, 8, 2), _normals_engine(rng, 8, 2), _exps(z[:8], 2),  # compile
+                        _exps_engine(z[:8], 2, e), _memory_pass(x[:8].copy(), 2)), 8, 2, 1)
     return {"normal": _median_ns(lambda: _normals(rng, n, m), n, m, repeats),
             "normal_engine": _median_ns(lambda: _normals_engine(rng, n, m), n, m, repeats),
             "exp": _median_ns(lambda: _exps(z, m), n, m, repeats),

@@ -37,6 +37,7 @@ import numba.extending
 import numpy as np
 
 from ..backends.fastexp import exp_scalar
+from ..backends.interrupts import held
 from ..backends.particle_work import Settings, Step, Work, work_arrays
 from ..methods import Method
 from ..resampling import Scheme
@@ -141,13 +142,15 @@ def _harnesses(mod):
 
 
 def _timer(fn, args, n: int, m: int):
-    """A callable timing one run of ``fn(*args)`` in ns per particle-step (``fn`` compiled first)."""
-    fn(*args)  # compile
-
+    """A callable timing one run of ``fn(*args)`` in ns per particle-step (``fn`` compiled first);
+    the interrupts are held back during each call (:func:`pfbench.backends.interrupts.held`: the
+    arguments may include a generator)."""
     def once():
-        t0 = time.perf_counter()
-        fn(*args)
-        return (time.perf_counter() - t0) * 1e9 / (n * m)
+        with held():
+            t0 = time.perf_counter()
+            fn(*args)
+            return (time.perf_counter() - t0) * 1e9 / (n * m)
+    once()  # compile
     return once
 
 

@@ -62,3 +62,37 @@ def test_no_signal_no_delivery(handlers):
         pass
     assert handlers == []
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_interrupt_while_numba_unboxes_a_generator_arrives_after_the_call():
+    """numba unboxes a Generator by calling ``ctypes.cast`` (Python code) and does not check that
+    call for an exception: a signal whose handler raised there (a sweep's SIGTERM, Ctrl-C) ended
+    the process with a segmentation fault. The kernel call holds the signals back
+    (``interrupts.held``), so the interrupt arrives when the call returns. A subprocess raises
+    SIGINT from inside numba's first ``ctypes.cast(..., c_void_p)`` of a filter run; catches the
+    hold taken off the particle kernel's call (exit -11 instead of the KeyboardInterrupt)."""
+    import subprocess
+    import sys
+
+    code = """
+import ctypes, signal
+from pfbench import models
+from pfbench.filters import run_filter
+model = models.get("ob1")
+y = model.simulate(5, seed=1).y
+run_filter(model, y, n_particles=100)  # compiled and loaded
+real, seen = ctypes.cast, []
+def cast(obj, typ):
+    if typ is ctypes.c_void_p and not seen:  # numba's unboxing of a Generator
+        seen.append(1)
+        signal.raise_signal(signal.SIGINT)
+    return real(obj, typ)
+ctypes.cast = cast
+try:
+    run_filter(model, y, n_particles=100)
+except KeyboardInterrupt:
+    print("interrupted after the call", len(seen))
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, (r.returncode, r.stderr[-2000:])
+    assert "interrupted after the call 1" in r.stdout

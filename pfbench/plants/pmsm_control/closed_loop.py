@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from ...backends.cache import njit
+from ...backends.interrupts import held
 
 from ...errors import PfbenchError
 from ...filters.inputs import ess_count
@@ -182,9 +183,10 @@ def run_once(cfg: LoopConfig, seed: int = 0, run: int = 0) -> dict:
         hs = (M, n) if cfg.store_particles else (1, 1)
         hist = [np.zeros(hs), np.zeros(hs), np.zeros(hs)]
         fn = _closed_loop_smc_nb if cfg.backend == "numba" else _closed_loop_smc_py
-        fn(mp, p, scheme, threshold, cp, consts, S, w_ref, x0, n, mode, CONTROLLERS[cfg.controller],
-           rng_plant, rng_filter, rng_point, xs, ys, us, est, spread, ess, res,
-           cfg.store_particles, *hist)
+        with held():  # numba unboxes the generators (pfbench.backends.interrupts.held)
+            fn(mp, p, scheme, threshold, cp, consts, S, w_ref, x0, n, mode, CONTROLLERS[cfg.controller],
+               rng_plant, rng_filter, rng_point, xs, ys, us, est, spread, ess, res,
+               cfg.store_particles, *hist)
         out = {"x": xs, "y": ys, "u": us, "est": est, "spread": spread, "ess": ess,
                "resampled": res}
         if cfg.store_particles:

@@ -36,6 +36,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from ...backends.cache import njit
+from ...backends.interrupts import held
 from ...backends.guided_work import Moments, Particles, Settings
 from ...backends.numba_weights import weigh as _weigh
 from ...errors import InputError
@@ -273,11 +274,13 @@ def run_smc(model, y, u, *, n_particles=60, ess_threshold=ESS_FRACTION, point="m
     scheme = scheme_code(resampling)
     fn = _offline_nb if backend == "numba" else _offline_py
     if backend == "numba":  # compile outside the timed region
-        _offline_nb(p, y[:2], u[:2], n, scheme, thr, mode, np.random.default_rng(0),
-                    np.random.default_rng(1), est[:2].copy(), ess[:2].copy(), inc[:2].copy(),
-                    res[:2].copy(), spread[:2].copy())
+        with held():
+            _offline_nb(p, y[:2], u[:2], n, scheme, thr, mode, np.random.default_rng(0),
+                        np.random.default_rng(1), est[:2].copy(), ess[:2].copy(), inc[:2].copy(),
+                        res[:2].copy(), spread[:2].copy())
     t0 = time.perf_counter()
-    fn(p, y, u, n, scheme, thr, mode, rng, rng_point, est, ess, inc, res, spread)
+    with held():  # numba unboxes the generators (pfbench.backends.interrupts.held)
+        fn(p, y, u, n, scheme, thr, mode, rng, rng_point, est, ess, inc, res, spread)
     elapsed = time.perf_counter() - t0
     return {"estimates": est, "ess": ess, "loglik_increments": inc, "resampled": res,
             "spread": spread, "elapsed_s": elapsed, "us_per_step": elapsed * 1e6 / M}
