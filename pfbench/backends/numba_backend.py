@@ -84,7 +84,8 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
         args = args[:-1] + (settings._replace(pass_a=a, pass_b=b, merge=c),)
         with held():  # the generators' unboxing (interrupts.held)
             if not parallel:
-                return driver(*args)
+                driver(*args)
+                return
             k = min(int(n_threads or free_cores()), numba.config.NUMBA_NUM_THREADS)
             with _PARALLEL_LOCK:
                 numba.set_num_threads(k)

@@ -156,7 +156,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     scheme = int(Scheme.parse(resampling))
     block = int(block or BLOCK)
     at = {"estimate": "post"} if Estimate.parse(estimate) == Estimate.POST else {}
-    # free_cores reads /proc (about 0.1 ms): only where there are groups to spread over threads
+    # free_cores reads /proc: only where there are groups to spread over threads
     workers = min(n_groups, n_threads or free_cores()) if n_groups > 1 else 1
     pooled = n_groups > 1 and backend == "numba" and workers > 1
     # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
