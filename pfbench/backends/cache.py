@@ -16,18 +16,16 @@ holds its key, so a writer killed or racing between the two leaves a miss, never
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import os
 import shutil
 import sys
-import threading
 import warnings
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
-_LOCK = threading.Lock()
-_FINGERPRINT: str | None = None
 _TRACKED: set[str] = set()
 
 
@@ -59,24 +57,21 @@ def check_cache_dir() -> Path:
     return root
 
 
+@functools.cache
 def package_fingerprint() -> str:
     """Hash of every ``.py`` file of the package plus the Python, numba and NumPy versions; the recipes
     (``pfbench/reproductions``) are left out (:func:`pfbench.recipes.code_fingerprint` adds one's own)."""
-    global _FINGERPRINT
-    with _LOCK:
-        if _FINGERPRINT is None:
-            import numba
-            import numpy
+    import numba
+    import numpy
 
-            h = hashlib.sha256()
-            h.update(f"{sys.version_info[:3]}|{numba.__version__}|{numpy.__version__}".encode())
-            for path in sorted(PACKAGE_DIR.rglob("*.py")):
-                if "__pycache__" in path.parts or path.relative_to(PACKAGE_DIR).parts[0] == "reproductions":
-                    continue
-                h.update(str(path.relative_to(PACKAGE_DIR)).encode() + b"\0")
-                h.update(path.read_bytes() + b"\0")
-            _FINGERPRINT = h.hexdigest()
-        return _FINGERPRINT
+    h = hashlib.sha256()
+    h.update(f"{sys.version_info[:3]}|{numba.__version__}|{numpy.__version__}".encode())
+    for path in sorted(PACKAGE_DIR.rglob("*.py")):
+        if "__pycache__" in path.parts or path.relative_to(PACKAGE_DIR).parts[0] == "reproductions":
+            continue
+        h.update(str(path.relative_to(PACKAGE_DIR)).encode() + b"\0")
+        h.update(path.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def track_file(path) -> None:
@@ -89,26 +84,15 @@ def _file_hash(path: str) -> str:
     return _hash_cached(path, st.st_mtime_ns, st.st_size)
 
 
-_HASHES: dict = {}
-
-
+@functools.cache
 def _hash_cached(path: str, mtime_ns: int, size: int) -> str:
-    key = (path, mtime_ns, size)
-    if key not in _HASHES:
-        with open(path, "rb") as fh:
-            _HASHES[key] = hashlib.sha256(fh.read()).hexdigest()
-    return _HASHES[key]
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
 
 
 def _covered(py_file: str) -> bool:
     real = os.path.realpath(py_file)
-    if real in _TRACKED:
-        return True
-    try:
-        Path(real).relative_to(os.path.realpath(PACKAGE_DIR))
-        return True
-    except ValueError:
-        return False
+    return real in _TRACKED or Path(real).is_relative_to(os.path.realpath(PACKAGE_DIR))
 
 
 def _locator_class():
@@ -187,14 +171,9 @@ def remove_path(path) -> None:
         pass
 
 
-_HEALING_CLASS = None
-
-
+@functools.cache
 def _healing_cache_class():
     """Build (once) the numba cache classes used by every :func:`njit` function of pfbench."""
-    global _HEALING_CLASS
-    if _HEALING_CLASS is not None:
-        return _HEALING_CLASS
     from numba.core import caching
 
     class HealingIndexDataCacheFile(caching.IndexDataCacheFile):
@@ -297,20 +276,14 @@ def _healing_cache_class():
                            f"({type(exc).__name__}: {exc.strerror or exc}); continuing without it")
                 self.disable()
 
-    _HEALING_CLASS = HealingFunctionCache
-    return _HEALING_CLASS
+    return HealingFunctionCache
 
 
-_INSTALLED = False
-
-
+@functools.cache
 def install() -> None:
     """Put the package-keyed locator first in numba's list, apply the compile settings of
     :mod:`pfbench.backends.codegen` and defer interrupts during compiles
     (:mod:`pfbench.backends.interrupts`) (idempotent)."""
-    global _INSTALLED
-    if _INSTALLED:
-        return
     from numba.core import caching
 
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl")  # renamed in numba 0.6x
@@ -323,7 +296,6 @@ def install() -> None:
     keep_selects()
     constant_shape_errors()
     defer_during_compiles()
-    _INSTALLED = True
 
 
 def njit(*args, **options):

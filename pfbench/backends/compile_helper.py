@@ -89,8 +89,7 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> subprocess.
         proc.stdin.write(pickle.dumps((list(sys.path), pickle.dumps(spec))))
         proc.stdin.close()
     except OSError:  # it died at once: compile here
-        proc.kill()
-        proc.wait()
+        stop(proc)
         return None
     return proc
 
@@ -107,22 +106,16 @@ _BOOT = ("import os, pickle, sys\n"
 
 
 def _main(spec: dict) -> int:
-    """Compile the functions of ``spec`` (:func:`start`) into the disk cache; runs in the helper."""
+    """Compile the functions of ``spec`` (:func:`start`) of the model's any-scheme kernel module into
+    the disk cache; runs in the helper."""
     from pfbench.procs import die_with_parent
 
     die_with_parent(spec["parent"])
-    from pfbench.backends.kernels import model_class_by_name
-
-    _compile(model_class_by_name(spec["module"], spec["qualname"]), spec["family"], spec["f_tiles"],
-             spec["functions"])
-    return 0
-
-
-def _compile(model_cls: type, family: str, f_tiles: bool, functions) -> None:
-    """Compile ``functions`` of the any-scheme kernel module of ``model_cls`` (the helper's work)."""
     from pfbench.backends import native_call
-    from pfbench.backends.kernels import build
+    from pfbench.backends.kernels import build, model_class_by_name
 
-    mod = build(family, model_cls, None, f_tiles=f_tiles)
-    for name, argtypes in functions:
+    model_cls = model_class_by_name(spec["module"], spec["qualname"])
+    mod = build(spec["family"], model_cls, None, f_tiles=spec["f_tiles"])
+    for name, argtypes in spec["functions"]:
         native_call.entry_address(getattr(mod, name), argtypes)
+    return 0

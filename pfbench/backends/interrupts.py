@@ -33,15 +33,6 @@ def _record(signum, frame):
     _STATE["pending"].append(signum)
 
 
-def _deliver(saved: dict, pending: list) -> None:
-    for signum in pending:
-        handler = saved.get(signum)
-        if callable(handler):
-            handler(signum, None)  # e.g. KeyboardInterrupt, or a sweep's SIGTERM handler
-        elif handler == signal.SIG_DFL:
-            signal.raise_signal(signum)  # the default action, now that the handler is restored
-
-
 def _hold() -> None:
     """Start holding SIGINT and SIGTERM back (main thread only; nests)."""
     if threading.current_thread() is threading.main_thread():
@@ -54,18 +45,22 @@ def _hold() -> None:
 def _let_go(then=None) -> None:
     """End one :func:`_hold`, call ``then`` (the compiler lock's release), and at the outermost
     restore the handlers and deliver the signals that arrived meanwhile."""
-    deliver = None
+    saved, pending = {}, []
     if threading.current_thread() is threading.main_thread() and _STATE["depth"] > 0:
         _STATE["depth"] -= 1
         if _STATE["depth"] == 0:
             saved, _STATE["saved"] = _STATE["saved"], None
             for s, handler in saved.items():
                 signal.signal(s, handler)
-            deliver, _STATE["pending"] = (saved, _STATE["pending"]), []
+            pending, _STATE["pending"] = _STATE["pending"], []
     if then is not None:
         then()
-    if deliver:
-        _deliver(*deliver)
+    for signum in pending:
+        handler = saved.get(signum)
+        if callable(handler):
+            handler(signum, None)  # e.g. KeyboardInterrupt, or a sweep's SIGTERM handler
+        elif handler == signal.SIG_DFL:
+            signal.raise_signal(signum)  # the default action, now that the handler is restored
 
 
 @contextlib.contextmanager

@@ -53,7 +53,6 @@ _LOCK = threading.RLock()
 _LOCAL = threading.local()
 _MODULES: dict[tuple, types.ModuleType] = {}
 _FUNCS: dict[tuple[type, str], object] = {}
-_CLASSES: dict[tuple[str, str], type] = {}
 
 
 class Binding:
@@ -115,7 +114,6 @@ def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> ty
             return _MODULES[key]
         if disk_cacheable(cls):  # an unusable cache directory is one line naming it, before any compile
             cache.check_cache_dir()
-        _CLASSES[(cls.__module__, cls.__qualname__)] = cls  # a compile helper finds it by name
         digest = _source_fingerprint(cls, fam).hex()[:16]
         safe = "".join(c if c.isalnum() else "_" for c in f"{cls.__module__}_{cls.__qualname__}")
         name = f"pfbench_kernel_{family}_{'any' if code < 0 else code}{'_f' if tiles else ''}_{safe}_{digest}"
@@ -147,11 +145,9 @@ def column_major_tiles(model) -> bool:
 
 def model_class_by_name(module: str, qualname: str) -> type:
     """A model class from its module and qualified name (a compile helper process)."""
-    obj = _CLASSES.get((module, qualname))
-    if obj is None:
-        obj = importlib.import_module(module)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
     return obj
 
 

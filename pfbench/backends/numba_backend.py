@@ -5,8 +5,11 @@ call its driver with the entry addresses of what it calls by address (:func:`nat
 from __future__ import annotations
 
 import threading
+import warnings
 
+import numba
 import numpy as np
+from numba.core.errors import NumbaPendingDeprecationWarning
 
 from ..methods import Estimate
 from ..procs import free_cores
@@ -14,6 +17,7 @@ from ..resampling import Scheme
 from . import compile_helper, mpf_work, native_call, pcg64
 from .interrupts import held
 from .kernels import build, column_major_tiles
+from .numpy_backend import BLOCK, block_bounds, draw_initial
 from .particle_work import Settings, Step, outputs, pass_types, work_arrays
 
 _LOCK = threading.RLock()
@@ -42,12 +46,6 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
     """Numba twin of :func:`pfbench.backends.numpy_backend.run_group` (releases the GIL); ``block``: the
     largest stream block. Above one block and with ``n_threads`` != 1 (None: all) the block loops run on
     numba threads, with results independent of the thread count."""
-    import warnings
-
-    from numba.core.errors import NumbaPendingDeprecationWarning
-
-    from .numpy_backend import BLOCK, block_bounds, draw_initial
-
     y, u = np.ascontiguousarray(y), np.ascontiguousarray(u)  # C arrays, as pass A's types say
     x = out.x
     bounds = block_bounds(x.shape[1], int(block or BLOCK))
@@ -65,8 +63,6 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
     driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
-        import numba
-
         args = (p, rng, brngs, y, u, out, work, settings)
 
         def find():
@@ -168,7 +164,6 @@ _CALL_ADDRESSES: dict = {}
 
 def _call_addresses(driver, args, find) -> np.ndarray:
     """``find()`` (:func:`native_addresses`) for ``driver`` and ``args``, kept in :data:`_CALL_ADDRESSES`."""
-    import numba
     from numba._dispatcher import compute_fingerprint
 
     key = [driver]
@@ -187,8 +182,6 @@ def _call_addresses(driver, args, find) -> np.ndarray:
 def _step_calls(st, out, work) -> dict:
     """Name -> (argument types, return type) of the step math both MPF drivers call by address
     (:mod:`pfbench.backends.numba_mpf_steps`), typed from the groups the host passes."""
-    import numba
-
     none, w = numba.types.none, work
     return {"_time_update": (pass_types(w.lin, w.cond, st.noise.Ql, w.APl, w.pred), none),
             "_kalman_update": (pass_types(w.obs, w.pred, st.meas, 0, w.upd, w.wts.ll, w.cond), none),
@@ -205,8 +198,6 @@ def _run_calls(p, rng, u, st, work) -> dict:
     """Name -> (argument types, return type) of the rest of :data:`pfbench.backends.numba_mpf.RUN_CALLS`:
     the model's ``cl_*`` functions (return type None: known once compiled), their wrappers, the x^n
     noise, steps 1-2, weights and moments, typed from the objects the driver passes."""
-    import numba
-
     t = numba.types
     none, ut, w = t.none, u[0], work
     return {"_cl_transition": (pass_types(w.xn, ut, 0, p), None),
@@ -240,8 +231,6 @@ def run_guided(model, kind, p, rng, y, u, particles, out, settings):
 def _model_calls(kind, p, y, u, x, n_noise) -> list:
     """``(name, argument types, return type)`` of a guided run's two model calls by address: the
     proposal, then its weight (``kind`` "proposal") or the predictive likelihood ("optimal")."""
-    import numba
-
     none = numba.types.none
     noise, xn, ll = np.empty((1, n_noise)), np.empty_like(x), np.empty(1)
     calls = [("_propose_into", pass_types(x, y[0], u[0], 0, noise, p, xn), none)]

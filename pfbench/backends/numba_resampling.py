@@ -79,19 +79,6 @@ def _search_right(cdf, n, value):
 
 
 @njit(nogil=True, inline="always")
-def _residual_counts(w, total, counts, res):
-    n = w.shape[0]
-    s = 0
-    for i in range(n):
-        nw = (w[i] / total) * n  # normalise first: n / total overflows when total is subnormal
-        c = np.floor(nw)
-        counts[i] = np.int64(c)
-        res[i] = nw - c
-        s += counts[i]
-    return n - s
-
-
-@njit(nogil=True, inline="always")
 def _expand(counts, idx):
     k = 0
     for i in range(counts.shape[0]):
@@ -142,7 +129,14 @@ def residual_into(w, total, rng, idx, deterministic):
     n = w.shape[0]
     counts = np.empty(n, np.int64)
     res = np.empty(n)
-    r = _residual_counts(w, total, counts, res)
+    s = 0
+    for i in range(n):
+        nw = (w[i] / total) * n  # normalise first: n / total overflows when total is subnormal
+        c = np.floor(nw)
+        counts[i] = np.int64(c)
+        res[i] = nw - c
+        s += counts[i]
+    r = n - s
     if r > 0:
         if deterministic:
             order = _decreasing_order(res)
@@ -353,10 +347,8 @@ KERNELS = {None: "any_scheme", Scheme.SYSTEMATIC: "systematic", Scheme.STRATIFIE
 
 
 def kernel_name(scheme) -> str:
-    """Name of the kernel of a scheme (a :class:`Scheme`, its name or code; None: any scheme)."""
-    if scheme is None:
-        return KERNELS[None]
-    return KERNELS[Scheme(scheme) if isinstance(scheme, int) else Scheme.parse(scheme)]
+    """Name of the kernel of a :class:`Scheme` code (None: any scheme)."""
+    return KERNELS[None if scheme is None else Scheme(scheme)]
 
 
 def resample(name: str, weights, rng: np.random.Generator) -> np.ndarray:

@@ -29,9 +29,7 @@ def weigh(lw, ll, wu, cdf):
     ``lw`` are the normalised log-weights before this step, ``ll`` the log-likelihoods (or
     incremental log-weights). NaN and +inf in ``ll`` count as -inf (zero likelihood) and are
     overwritten so in ``ll``. If every likelihood is zero, the previous weights are kept and
-    ``degenerate`` is True. The exponential is :func:`pfbench.backends.fastexp.exp_scalar` in a loop
-    of its own, compiled with ``error_model="numpy"`` (no zero-division check, which would stop
-    LLVM from vectorising it).
+    ``degenerate`` is True. The exponentials vectorise as :mod:`pfbench.backends.fastexp` describes.
     """
     n = lw.shape[0]
     m = -np.inf
@@ -100,9 +98,7 @@ def block_weights(work, step):
     the caches every step, and a loop over one array needs no run-time overlap test in front of
     its vectorised body.
 
-    * The exponentials are a loop of their own (:func:`pfbench.backends.fastexp.exp_scalar`, which
-      LLVM vectorises; ``error_model="numpy"``: numba's zero-division check would stop the
-      vectoriser).
+    * The exponentials are a loop of their own, which vectorises (:mod:`pfbench.backends.fastexp`).
     * The running sum is the one strictly sequential chain (the cdf feeds the resampling, so it
       is the NumPy reference's ``cumsum`` order). It waits one add's latency per particle, so
       sum w^2 and the first state component's two moment sums ride along in the same loop for

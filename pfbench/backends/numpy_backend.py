@@ -101,11 +101,6 @@ def block_streams(rng, seed_seq, n: int, block: int = BLOCK) -> list:
             for b in range(nb)]
 
 
-def _blocks(n: int, block: int):
-    bounds = block_bounds(n, block)
-    return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
-
-
 def _block_weights(a: np.ndarray, m: float, blocks):
     """w = exp(a - m) (:func:`pfbench.backends.fastexp.exp_array`, the numba kernels' bits), the cdf as
     block offset + running sum within the block, and the block sums added in block order."""
@@ -168,7 +163,8 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
     if brngs is None:  # no stream blocks given: the whole population is one block
         blocks, brngs = [slice(0, n)], [rng]
     else:
-        blocks, brngs = _blocks(n, int(block or BLOCK)), list(brngs)
+        bounds = block_bounds(n, int(block or BLOCK))
+        blocks, brngs = [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])], list(brngs)
         if len(brngs) != len(blocks):
             raise ValueError(f"{len(brngs)} block streams for {len(blocks)} blocks")  # a caller bug
     post = Estimate.parse(estimate) == Estimate.POST

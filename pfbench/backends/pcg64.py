@@ -40,9 +40,6 @@ from numba.np.random._constants import (fi_double, fi_float, ki_double, ki_float
 
 #: PCG64's 128-bit multiplier (PCG_DEFAULT_MULTIPLIER_128)
 MULTIPLIER = 0x2360ED051FC65DA44385DF649FCCF645
-_MUL_LO = MULTIPLIER & 0xFFFFFFFFFFFFFFFF
-_MUL_HI = MULTIPLIER >> 64
-_M64 = 0xFFFFFFFFFFFFFFFF
 
 
 def _struct_address(builder, context, gen_type, gen):
