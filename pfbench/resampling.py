@@ -42,6 +42,11 @@ class Scheme(Choice):
 
 Scheme._what = "resampling scheme"
 SCHEMES = Scheme.labels()
+#: the schemes whose positions (u_i + i) / N increase with i: the particle kernels resample them
+#: by a merge over the running sum, per stream block (pass C of
+#: :mod:`pfbench.backends.numba_particle`); every other scheme draws all N indices on the filter's
+#: stream, then the particles are gathered
+MERGED = frozenset({Scheme.SYSTEMATIC, Scheme.STRATIFIED})
 
 
 def _cdf(weights: np.ndarray) -> np.ndarray:

@@ -73,6 +73,23 @@ def test_numba_equals_numpy(scheme):
         assert np.array_equal(a, b)
 
 
+@pytest.mark.parametrize("scheme", [*resampling.SCHEMES, "unknown"])
+def test_numba_any_scheme_runs_the_kernel_of_the_code_it_is_given(scheme):
+    """``any_scheme`` (the kernel of callers that choose the scheme at run time) gives the NumPy
+    scheme's indices for every code, and raises for a code it has no branch for. Catches a branch
+    that runs another scheme (a new scheme falling through to residual, residual and its
+    deterministic variant swapped)."""
+    w = _weights(200, 3)
+    cdf = np.cumsum(w)
+    idx = np.empty(w.size, np.int64)
+    if scheme == "unknown":
+        with pytest.raises(ValueError, match="without a kernel"):
+            numba_resampling.any_scheme(len(resampling.Scheme), w, cdf, np.random.default_rng(3), idx)
+        return
+    numba_resampling.any_scheme(int(resampling.Scheme.parse(scheme)), w, cdf, np.random.default_rng(3), idx)
+    assert np.array_equal(idx, resampling.resample(scheme, w, np.random.default_rng(3)))
+
+
 def test_unnormalised_weights_accepted():
     w = _weights(30, seed=7)
     rng1, rng2 = np.random.default_rng(0), np.random.default_rng(0)

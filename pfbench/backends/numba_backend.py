@@ -13,7 +13,7 @@ from numba.core.errors import NumbaPendingDeprecationWarning
 
 from ..methods import Estimate
 from ..procs import free_cores
-from ..resampling import Scheme
+from ..resampling import MERGED
 from . import compile_helper, mpf_work, native_call, pcg64
 from .interrupts import held
 from .kernels import build, column_major_tiles
@@ -69,7 +69,7 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
             step = Step()
             calls = [("_pass_a", pass_types(p, rng, y, u, work, settings, step), numba.types.float64),
                      ("_pass_b", pass_types(work, step), numba.types.none)]
-            if mod._SCHEME in (-1, Scheme.SYSTEMATIC, Scheme.STRATIFIED):  # the merge branch (-1: any)
+            if mod._SCHEME == -1 or mod._SCHEME in MERGED:  # the merge branch (-1: any scheme)
                 calls.append(("_merge_gather", pass_types(work, settings, step), numba.types.none))
             # a cold start: the driver and pass B here, pass A and the merge in the helper (balanced)
             found = native_addresses(model, "particle", mod, driver, args, calls, here=("_pass_b",),

@@ -11,8 +11,9 @@ A. draw + propagate + log-likelihood + a = lw + ll + running max, in tiles of ``
    (:func:`_pass_a`: the model's vectorised functions on a tile view, the draws one big draw gives);
 B. w = exp(a - max) over the log-weights, the running sum (cdf), moments and sum w^2
    (:func:`pfbench.backends.numba_weights.block_weights`);
-C. systematic/stratified: a merge straight into the other particle buffer
-   (:func:`pfbench.backends.numba_resampling.merge_gather`); multinomial/residual: indices, a gather;
+C. the schemes of :data:`pfbench.resampling.MERGED` (systematic, stratified): a merge straight into
+   the other particle buffer (:func:`pfbench.backends.numba_resampling.merge_gather`); every other
+   scheme: its kernel's indices, then a gather;
 D. ``estimate="post"``, at a step that resampled: the unweighted moments replace ``est``/``var``
    ([MultiPDF] Alg. 1 step 6; :func:`pfbench.backends.numba_weights.block_moments`).
 
@@ -57,8 +58,8 @@ from pfbench.resampling import Scheme as _Scheme
 _ASIR = int(_Method.ASIR)
 _BOOTSTRAP = int(_Method.BOOTSTRAP)
 _SIR = int(_Method.SIR)
-_SYSTEMATIC = int(_Scheme.SYSTEMATIC)  # the schemes the merge serves
-_STRATIFIED = int(_Scheme.STRATIFIED)
+_SYSTEMATIC = int(_Scheme.SYSTEMATIC)  # the schemes the merge serves (pfbench.resampling.MERGED),
+_STRATIFIED = int(_Scheme.STRATIFIED)  # compared one by one below, so a scheme's kernel drops the other branch
 #: particles per tile of the fused pass A: the tile's noise, new states and likelihoods stay in
 #: L1/L2, and the model's result arrays, allocated per tile, are a fixed cost per tile
 _TILE = 1024

@@ -16,7 +16,9 @@ from .cache import njit
 
 from ..resampling import Scheme
 
-_STRATIFIED = int(Scheme.STRATIFIED)
+_SYSTEMATIC, _STRATIFIED, _MULTINOMIAL, _RESIDUAL, _RESIDUAL_DETERMINISTIC = (
+    int(Scheme.SYSTEMATIC), int(Scheme.STRATIFIED), int(Scheme.MULTINOMIAL), int(Scheme.RESIDUAL),
+    int(Scheme.RESIDUAL_DETERMINISTIC))
 
 #: particles per tile of the count estimates in :func:`merge_gather` (a loop of their own, which
 #: vectorises, ahead of the exact corrections); the length of its ``kk`` scratch
@@ -200,15 +202,18 @@ def residual_deterministic(code, w, cdf, rng, idx):
 
 @njit(nogil=True, inline="always")
 def any_scheme(code, w, cdf, rng, idx):
-    """Dispatch on the :class:`~pfbench.resampling.Scheme` code (compiles every scheme)."""
-    if code == 0:
+    """Dispatch on the :class:`~pfbench.resampling.Scheme` code (compiles every scheme); a code
+    without a branch here raises, so a new scheme cannot run another one's kernel."""
+    if code == _SYSTEMATIC:
         systematic(code, w, cdf, rng, idx)
-    elif code == 1:
+    elif code == _STRATIFIED:
         stratified(code, w, cdf, rng, idx)
-    elif code == 2:
+    elif code == _MULTINOMIAL:
         multinomial(code, w, cdf, rng, idx)
+    elif code == _RESIDUAL or code == _RESIDUAL_DETERMINISTIC:
+        residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == _RESIDUAL_DETERMINISTIC)
     else:
-        residual_into(w, cdf[cdf.shape[0] - 1], rng, idx, code == 4)
+        raise ValueError("any_scheme: a resampling scheme code without a kernel here")
 
 
 @njit(nogil=True, error_model="numpy")

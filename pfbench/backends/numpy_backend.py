@@ -14,7 +14,8 @@ Stream blocks (:func:`block_bounds`): one up to N_p = :data:`BLOCK`, else a mult
 blocks, so 2, 4, 8 or 16 threads get equal work. With B > 1 blocks, block b's own generator
 (:func:`block_streams`) draws block b's initial particles of every filter, then per step its
 transition noise (and the stratified uniforms of output block b); systematic's one uniform and the
-multinomial and residual draws come from the filter's generator. Running sums restart per block and
+draws of every scheme outside :data:`pfbench.resampling.MERGED` come from the filter's generator,
+those schemes on the sequential running sum. Running sums restart per block and
 add the block's offset, and block totals are added in block order, so the numbers depend on the seed
 and N_p, never on the thread count. The numba kernel (:mod:`pfbench.backends.numba_particle`) follows
 the same order with the same operations, so the two backends agree under common random numbers.
@@ -117,7 +118,7 @@ def _resample_into(scheme, wu, cdf, rng, brngs, blocks):
     """Ancestor indices: systematic/stratified on the block cdf (stratified uniforms of block b from
     stream b), the other schemes as :mod:`pfbench.resampling` on the filter's stream."""
     n = wu.size
-    if len(blocks) == 1 or scheme not in (resampling.Scheme.SYSTEMATIC, resampling.Scheme.STRATIFIED):
+    if len(blocks) == 1 or scheme not in resampling.MERGED:
         return resampling.get(scheme)(wu, rng)
     if scheme == resampling.Scheme.SYSTEMATIC:
         u = np.full(n, rng.random())
