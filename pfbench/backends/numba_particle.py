@@ -49,6 +49,10 @@ from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
 from pfbench.backends.numba_weights import block_moments as _block_moments
 from pfbench.backends.particle_work import Step as _Step
+from pfbench.backends.particle_work import B_MAX as _B_MAX, B_OFFSET as _B_OFFSET, B_SUM as _B_SUM
+from pfbench.backends.particle_work import B_SUM_SQ as _B_SUM_SQ, F_CDF as _F_CDF, F_LAM as _F_LAM
+from pfbench.backends.particle_work import F_LAM_ALL as _F_LAM_ALL, F_UNIFORMS as _F_UNIFORMS
+from pfbench.backends.particle_work import F_WEIGHTS as _F_WEIGHTS
 from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
@@ -236,9 +240,9 @@ def _pass_a(p, brng, y, u, work, settings, step):
     first = step.first
     asir = step.asir
     fw = work.fwork
-    la = fw[2]
-    lam = fw[3] if fw.shape[0] > 3 else la
-    lam_out = fw[4] if fw.shape[0] > 3 else la
+    la = fw[_F_WEIGHTS]
+    lam = fw[_F_LAM] if fw.shape[0] > _F_LAM else la
+    lam_out = fw[_F_LAM_ALL] if fw.shape[0] > _F_LAM else la
     m = -_np.inf
     bin_ = _tile_buffer(xs, i1 - i0)  # float32: the model's input and the stored states, in float64
     bout = _tile_buffer(xs, i1 - i0)
@@ -361,11 +365,11 @@ def _run_group(p, rng, brngs, y, u, out, work, settings):
     # la: the log-weights, then (pass B, in place) the weights, then the merge's scratch; ub: the
     # stratified uniforms; ASIR's two lambda rows exist only for ASIR (nothing else touches them)
     fw = work.fwork
-    ub, cdf, la = fw[0], fw[1], fw[2]
-    lam = fw[3] if fw.shape[0] > 3 else la
-    lam_all = fw[4] if fw.shape[0] > 3 else la
+    ub, cdf, la = fw[_F_UNIFORMS], fw[_F_CDF], fw[_F_WEIGHTS]
+    lam = fw[_F_LAM] if fw.shape[0] > _F_LAM else la
+    lam_all = fw[_F_LAM_ALL] if fw.shape[0] > _F_LAM else la
     idx = work.iwork[:n]
-    bmax, bsum, bs2, off = work.bwork[0], work.bwork[1], work.bwork[2], work.bwork[3]
+    bmax, bsum, bs2, off = work.bwork[_B_MAX], work.bwork[_B_SUM], work.bwork[_B_SUM_SQ], work.bwork[_B_OFFSET]
     if method == _ASIR:
         for i in range(n):
             lam[i] = 0.0

@@ -15,14 +15,12 @@ from numba.extending import register_jitable
 from .cache import njit
 
 from ..resampling import Scheme
+from .particle_work import ESTIMATE_TILE, F_CDF, F_LAM, F_LAM_ALL, F_UNIFORMS, F_WEIGHTS
 
 _SYSTEMATIC, _STRATIFIED, _MULTINOMIAL, _RESIDUAL, _RESIDUAL_DETERMINISTIC = (
     int(Scheme.SYSTEMATIC), int(Scheme.STRATIFIED), int(Scheme.MULTINOMIAL), int(Scheme.RESIDUAL),
     int(Scheme.RESIDUAL_DETERMINISTIC))
 
-#: particles per tile of the count estimates in :func:`merge_gather` (a loop of their own, which
-#: vectorises, ahead of the exact corrections); the length of its ``kk`` scratch
-ESTIMATE_TILE = 512
 
 
 @njit(nogil=True)
@@ -265,14 +263,14 @@ def merge_gather(work, settings, step):
     i0 = work.bounds[b]
     i1 = work.bounds[b + 1]
     fw = work.fwork
-    cdf = fw[1]
+    cdf = fw[F_CDF]
     n = cdf.shape[0]
     u = step.u
     strat = settings.scheme == _STRATIFIED
-    ub = fw[0, i0:i1]
+    ub = fw[F_UNIFORMS, i0:i1]
     with_lam = step.first
     anc = work.iwork[:n]
-    pos = fw[2]
+    pos = fw[F_WEIGHTS]
     kk = work.iwork[n + b * ESTIMATE_TILE:n + (b + 1) * ESTIMATE_TILE]
     n_x = src.shape[1]
     total = cdf[n - 1]
@@ -326,10 +324,10 @@ def merge_gather(work, settings, step):
                 db[k, c] = src[_nonneg(a), c]
             if with_lam:
                 ab[k] = a
-    if with_lam and fw.shape[0] > 3:  # ASIR's first stage: its log-likelihoods follow the particles
+    if with_lam and fw.shape[0] > F_LAM:  # ASIR's first stage: its log-likelihoods follow the particles
         # (a loop of its own: the two rows used inside the gather made every loop here slower)
         for k in range(nb):
-            fw[3, i0 + k] = fw[4, _nonneg(ab[k])]
+            fw[F_LAM, i0 + k] = fw[F_LAM_ALL, _nonneg(ab[k])]
 
 
 @njit(nogil=True)

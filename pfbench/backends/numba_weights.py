@@ -13,6 +13,7 @@ from numba.extending import register_jitable
 
 from .cache import njit
 from .fastexp import exp_scalar
+from .particle_work import B_SUM, B_SUM_SQ, F_CDF, F_WEIGHTS
 
 
 @register_jitable
@@ -114,10 +115,10 @@ def block_weights(work, step):
     i0 = work.bounds[b]
     i1 = work.bounds[b + 1]
     mom = not step.first
-    bsum, bs2, bsx, bsxx = work.bwork[1], work.bwork[2], work.bmom[0], work.bmom[1]
+    bsum, bs2, bsx, bsxx = work.bwork[B_SUM], work.bwork[B_SUM_SQ], work.bmom[0], work.bmom[1]
     n_x = xs.shape[1]
-    w = work.fwork[2, i0:i1]  # views that start at 0 (see above)
-    cb = work.fwork[1, i0:i1]
+    w = work.fwork[F_WEIGHTS, i0:i1]  # views that start at 0 (see above)
+    cb = work.fwork[F_CDF, i0:i1]
     x = xs[i0:i1]
     m = step.m
     for k in range(w.shape[0]):

@@ -12,7 +12,16 @@ from typing import NamedTuple
 import numpy as np
 
 from ..methods import Method
-from .numba_resampling import ESTIMATE_TILE
+
+#: the rows of :attr:`Work.fwork`: stratified uniforms, running sum (cdf), log-weights (weights after
+#: pass B; the merge's positions after that); ASIR only: the first-stage log-likelihoods of the
+#: particles now in the buffer, and those of every particle before the first-stage resampling
+F_UNIFORMS, F_CDF, F_WEIGHTS, F_LAM, F_LAM_ALL = range(5)
+#: the rows of :attr:`Work.bwork`, per block: max log-weight, weight sum, sum of squared weights, cdf offset
+B_MAX, B_SUM, B_SUM_SQ, B_OFFSET = range(4)
+#: particles per tile of the merge's count estimates
+#: (:func:`pfbench.backends.numba_resampling.merge_gather`); :attr:`Work.iwork` holds one tile per block
+ESTIMATE_TILE = 512
 
 
 class Outputs(NamedTuple):
@@ -41,9 +50,10 @@ def outputs(n_filters: int, n_steps: int, n_particles: int, n_x: int, dtype=np.f
     over ``n_steps`` (M) steps, particles in ``dtype``; ``store``: room for every step's weighted
     particles."""
     G, M, n, k = n_filters, n_steps, n_particles, n_steps if store else 0
-    return Outputs(np.empty((G, n, n_x), dtype), np.empty((G, M, n_x)), np.empty((G, M, n_x)),
-                   np.empty((G, M)), np.empty((G, M)), np.zeros((G, M), np.bool_), np.zeros((G, M), np.bool_),
-                   np.empty((G, k, n, n_x), dtype), np.empty((G, k, n)))
+    return Outputs(x=np.empty((G, n, n_x), dtype), est=np.empty((G, M, n_x)), var=np.empty((G, M, n_x)),
+                   ess=np.empty((G, M)), inc=np.empty((G, M)), resampled=np.zeros((G, M), np.bool_),
+                   degen=np.zeros((G, M), np.bool_), hist_x=np.empty((G, k, n, n_x), dtype),
+                   hist_w=np.empty((G, k, n)))
 
 
 class Work(NamedTuple):
@@ -55,12 +65,11 @@ class Work(NamedTuple):
     xs: np.ndarray
     #: (G, N_p) log-weights kept between steps; (G, 0) for the bootstrap filter, which never keeps them
     lw: np.ndarray
-    #: (3, N_p) float rows: stratified uniforms, running sum (cdf), log-weights that pass B turns
-    #: into weights in place; ASIR adds two: its first-stage log-likelihoods and their resampled copy
+    #: (3, N_p) float rows ``F_*`` (5 for ASIR)
     fwork: np.ndarray
     #: (N_p + B * ESTIMATE_TILE,) int64: ancestor indices, then one estimate tile of merge marks per block
     iwork: np.ndarray
-    #: (4, B) per block: max log-weight, weight sum, sum of squared weights, cdf offset
+    #: (4, B) per block, rows ``B_*``
     bwork: np.ndarray
     #: (2, B, n_x) per block: sums of w x and of w (x - x_0)^2
     bmom: np.ndarray
@@ -106,10 +115,11 @@ def work_arrays(x, n_blocks: int, bounds, method: int) -> Work:
     keeps_weights = method != int(Method.BOOTSTRAP)
     asir = method == int(Method.ASIR)
     G, n, n_x = x.shape
-    return Work(np.empty((2, G, n, n_x), x.dtype), np.empty((G, n) if keeps_weights else (G, 0)),
-                np.empty((5 if asir else 3, n)), np.empty(n + n_blocks * ESTIMATE_TILE, np.int64),
-                np.empty((4, n_blocks)), np.empty((2, n_blocks, n_x)), np.empty((2, G), np.int64),
-                np.ascontiguousarray(bounds, dtype=np.int64))
+    return Work(xs=np.empty((2, G, n, n_x), x.dtype), lw=np.empty((G, n) if keeps_weights else (G, 0)),
+                fwork=np.empty((F_LAM_ALL + 1 if asir else F_WEIGHTS + 1, n)),
+                iwork=np.empty(n + n_blocks * ESTIMATE_TILE, np.int64), bwork=np.empty((B_OFFSET + 1, n_blocks)),
+                bmom=np.empty((2, n_blocks, n_x)), gstate=np.empty((2, G), np.int64),
+                bounds=np.ascontiguousarray(bounds, dtype=np.int64))
 
 
 def pass_types(*values) -> tuple:

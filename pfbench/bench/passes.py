@@ -38,7 +38,7 @@ import numpy as np
 
 from ..backends.fastexp import exp_scalar
 from ..backends.interrupts import held
-from ..backends.particle_work import Settings, Step, Work, work_arrays
+from ..backends.particle_work import B_SUM, F_WEIGHTS, Settings, Step, Work, work_arrays
 from ..methods import Method
 from ..resampling import Scheme
 from .timing import filter_ns, interleaved, paired_ratio
@@ -129,7 +129,7 @@ def _harnesses(mod):
     def whole_b(work, m):
         for _ in range(m):  # in place: the weights are in (0, 1], so with max 1 the next call's stay there
             pass_b(work, Step(0, 0, 0, False, False, 1.0, 0.0))
-        return work.bwork[1, 0]
+        return work.bwork[B_SUM, 0]
 
     @numba.njit
     def resample(cdfs, work, settings, rng):
@@ -181,7 +181,7 @@ def _part_timers(n: int, m: int, dtype: str) -> tuple[dict, str]:
         w.xs[0, 0] = x
         w.gstate[:, 0] = (0, 1)
         if la_row is not None:
-            w.fwork[2] = la_row
+            w.fwork[F_WEIGHTS] = la_row
         return w
 
     settings = Settings(1, int(Method.BOOTSTRAP), int(Scheme.SYSTEMATIC), 0.0, False, 0, 0, 0)
