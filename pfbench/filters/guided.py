@@ -39,8 +39,10 @@ Backends and random numbers: the NumPy functions here are the readable reference
 particles; :mod:`pfbench.backends.numba_guided` is the compiled twin. Both draw from one
 ``numpy.random.default_rng(seed)`` in the same order: the model's ``initial``, then per step
 (own proposal) the proposal normals ``(N_p, n_proposal_noise)`` and the resampling draws if the
-filter resamples, or (optimal) the resampling draws, then the proposal normals. Under the same
-seed the backends agree to round-off (<= 1e-9, tested).
+filter resamples, or (optimal) the resampling draws, then the proposal normals. One stream at
+every N_p (no stream blocks, unlike the particle family above 8192 particles), and float64
+normals whatever the particle dtype. Under the same seed the backends agree to round-off
+(<= 1e-9, tested).
 
 Per-step use from compiled code: :func:`step_functions` returns ``init`` / ``step`` functions that
 run this NumPy reference when called from Python and the compiled kernel when called from a numba

@@ -49,7 +49,8 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         ``xp-numpy`` runs the same code on NumPy).
     dtype : particle storage precision, ``float64`` or ``float32``.
     seed : int or ``numpy.random.SeedSequence``.
-    common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`).
+    common_random_numbers : one random stream for everything (see :mod:`pfbench.filters.particle`);
+        the MPF, guided and Kalman filters always draw from one stream.
     n_threads : numba threads (default None: the cores free now, :func:`pfbench.procs.free_cores`,
         so a busy machine gets fewer threads instead of a collapse; 1: sequential). One filter with more than
         one stream block (N_p > :data:`pfbench.backends.numpy_backend.BLOCK`) runs its particle

@@ -2,22 +2,27 @@
 one line naming the model, the function and the problem instead of a traceback from deep inside a
 backend (or, worse, a run that goes on with wrongly broadcast arrays).
 
-:func:`check_model` calls the model's four functions on a tiny block of particles in NumPy, the
+:func:`check_model` calls the model's functions on a tiny block of particles in NumPy, the
 same check for both backends: each must be a ``@staticmethod`` and return float arrays of the
-documented shapes (:mod:`pfbench.models.base`):
+documented shapes (:mod:`pfbench.models.base`); the last three are the guided filter's, checked
+where the model defines them:
 
-=================  ===========================================  =============
-function           called as                                    returns
-=================  ===========================================  =============
-``initial``        ``initial(rng, n, p)``                       (n, n_x)
-``transition``     ``transition(x, u_t, t, noise, p)``          (n, n_x)
-``log_likelihood`` ``log_likelihood(y_t, x, u_t, t, p)``        (n,)
-``observe``        ``observe(x, u_t, t, noise, p)``             (n, n_y)
-=================  ===========================================  =============
+=============================  =============================================  =============
+function                       called as                                      returns
+=============================  =============================================  =============
+``initial``                    ``initial(rng, n, p)``                         (n, n_x)
+``transition``                 ``transition(x, u_t, t, noise, p)``            (n, n_x)
+``log_likelihood``             ``log_likelihood(y_t, x, u_t, t, p)``          (n,)
+``observe``                    ``observe(x, u_t, t, noise, p)``               (n, n_y)
+``proposal``                   ``proposal(x_prev, y_t, u_t, t, noise, p)``    (n, n_x)
+``proposal_log_weight``        ``proposal_log_weight(x, x_prev, y_t, ...)``   (n,)
+``predictive_log_likelihood``  ``predictive_log_likelihood(y_t, x_prev, ...)``  (n,)
+=============================  =============================================  =============
 
 An exception raised by the model's own code is reported with its type and message (``pfbench
 --debug`` shows the traceback). :func:`numba_failure` does the same for code numba cannot compile:
-it compiles the four functions one by one on the probe's arguments to name the one that fails.
+it compiles the functions the model defines one by one on the probe's arguments to name the one
+that fails.
 """
 from __future__ import annotations
 
@@ -28,7 +33,8 @@ import numpy as np
 
 from ..errors import InputError, PfbenchError
 
-FUNCTIONS = ("initial", "transition", "log_likelihood", "observe")
+FUNCTIONS = ("initial", "transition", "log_likelihood", "observe", "proposal", "proposal_log_weight",
+             "predictive_log_likelihood")
 PROBE = 3   # particles in the probe block
 
 
@@ -65,8 +71,21 @@ def _probe_args(model, y, u) -> dict:
     """Arguments of each function on the probe block (zero noise, the first measurement)."""
     p = model.params()
     n = PROBE
+    n_prop = getattr(model, "n_proposal_noise", None)
     return {"p": p, "n": n, "y0": np.asarray(y[0]), "u0": np.asarray(u[0]),
-            "noise": np.zeros((n, int(model.n_noise))), "obs_noise": np.zeros((n, int(model.obs_noise_dim)))}
+            "noise": np.zeros((n, int(model.n_noise))), "obs_noise": np.zeros((n, int(model.obs_noise_dim))),
+            "prop_noise": np.zeros((n, int(model.n_noise if n_prop is None else n_prop)))}
+
+
+def _calls(a: dict, x, want_x: tuple, want_y: tuple) -> tuple:
+    """(function, shape it returns, its arguments on the probe block ``x``) after ``initial``."""
+    p, y0, u0 = a["p"], a["y0"], a["u0"]
+    return (("transition", want_x, (x, u0, 0, a["noise"], p)),
+            ("log_likelihood", (a["n"],), (y0, x, u0, 0, p)),
+            ("observe", want_y, (x, u0, 0, a["obs_noise"], p)),
+            ("proposal", want_x, (x, y0, u0, 0, a["prop_noise"], p)),
+            ("proposal_log_weight", (a["n"],), (x, x, y0, u0, 0, p)),
+            ("predictive_log_likelihood", (a["n"],), (y0, x, u0, 0, p)))
 
 
 def _call(model, fn: str, needs: dict, *args):
@@ -110,15 +129,10 @@ def check_model(model, y, u, needs: dict | None = None) -> None:
     if x is None:
         return
     x = _shape(model, "initial", x, (n, n_x))
-    calls = (("transition", (n, n_x), lambda: (x, a["u0"], 0, a["noise"], a["p"])),
-             ("log_likelihood", (n,), lambda: (a["y0"], x, a["u0"], 0, a["p"])),
-             ("observe", (n, n_y), lambda: (x, a["u0"], 0, a["obs_noise"], a["p"])))
-    for fn, want, args in calls:
+    for fn, want, args in _calls(a, x, (n, n_x), (n, n_y)):
         if fn in have:
-            out = _call(model, fn, needs, *args())
-            if out is not None and fn == "transition":
-                x = _shape(model, fn, out, want)
-            elif out is not None:
+            out = _call(model, fn, needs, *args)
+            if out is not None:
                 _shape(model, fn, out, want)
 
 
@@ -139,13 +153,10 @@ def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
     import numba
 
     a = _probe_args(model, y, u)
-    x = np.zeros((a["n"], int(model.n_x)))
-    calls = {"initial": None,   # drawn in NumPy by every kernel: never compiled
-             "transition": (x, a["u0"], 0, a["noise"], a["p"]),
-             "log_likelihood": (a["y0"], x, a["u0"], 0, a["p"]),
-             "observe": None}
-    for fn, args in calls.items():
-        if args is None:
+    have = defined(model)
+    # initial is drawn in NumPy by every kernel and observe only simulates: neither is compiled
+    for fn, _, args in _calls(a, np.zeros((a["n"], int(model.n_x))), (), ()):
+        if fn == "observe" or fn not in have:
             continue
         try:
             numba.njit(getattr(type(model), fn))(*args)
