@@ -61,6 +61,7 @@ from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
+from ..models.contract import PROBE, call, linear_indices
 from ..resampling import Scheme
 from ..methods import check_backend, check_dtype
 from .inputs import check_inputs, seed_sequence
@@ -279,6 +280,8 @@ def _declares_structure(model) -> bool:
 def _psd(a: np.ndarray, what: str, definite: bool) -> None:
     if a.size == 0:
         return
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{what} must be finite, got {a.tolist()}")
     if not np.allclose(a, a.T, rtol=1e-10, atol=1e-12 * max(1.0, float(np.abs(a).max()))):
         raise InputError(f"{what} must be symmetric")
     if definite:
@@ -308,13 +311,10 @@ def structure(model, y, u) -> dict:
             "transition and measurement linearly) and implement cl_transition, cl_observation, "
             "cl_noise and cl_prior (see pfbench.models.base.StateSpaceModel)")
     n_x, n_y = int(model.n_x), int(model.n_y)
-    idx_l = np.asarray(model.linear_states, dtype=np.int64).reshape(-1)
-    if len(set(idx_l.tolist())) != idx_l.size or idx_l.size == 0 or idx_l.min() < 0 or idx_l.max() >= n_x:
-        raise InputError(f"{name}: linear_states must be distinct state indices in 0..{n_x - 1}, "
-                         f"at least one, got {model.linear_states!r}")
+    idx_l = linear_indices(model)
     idx_n = np.array([i for i in range(n_x) if i not in set(idx_l.tolist())], dtype=np.int64)
     d_n, d_l = idx_n.size, idx_l.size
-    Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in model.cl_noise())
+    Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in _returns(model, "cl_noise", ("Q", "R")))
     if Q.shape != (n_x, n_x) or R.shape != (n_y, n_y):
         raise InputError(f"{name}.cl_noise must return Q ({n_x}, {n_x}) and R ({n_y}, {n_y}), "
                          f"got {Q.shape} and {R.shape}")
@@ -327,13 +327,15 @@ def structure(model, y, u) -> dict:
     if corr:  # w^l = T w^n + wbar, T = Q^ln (Q^n)^-1, Cov wbar = Q^l - T Q^nl
         T = np.linalg.solve(Qn, Qnl).T
         Ql = Ql - T @ Qnl
-    m0, P0 = model.cl_prior()
+    m0, P0 = _returns(model, "cl_prior", ("m0", "P0"))
     m0 = np.asarray(m0, dtype=np.float64).reshape(-1)
     P0 = np.atleast_2d(np.asarray(P0, dtype=np.float64))
     if m0.shape != (d_l,) or P0.shape != (d_l, d_l):
         raise InputError(f"{name}.cl_prior must return m0 ({d_l},) and P0 ({d_l}, {d_l}), "
                          f"got {m0.shape} and {P0.shape}")
     _psd(P0, f"{name}: the prior covariance P0 of x^l", False)
+    if not np.all(np.isfinite(m0)):
+        raise InputError(f"{name}: the prior mean m0 of x^l must be finite, got {m0.tolist()}")
     whiten = bool(np.count_nonzero(R - np.diag(np.diag(R))))
     if whiten:
         L = np.linalg.cholesky(R)
@@ -348,10 +350,21 @@ def structure(model, y, u) -> dict:
                 W=c(W), rvar=c(rvar), whiten=whiten, logdet=logdet, yw=c(yw), m0=c(m0), P0=c(P0))
 
 
+def _returns(model, fn: str, names: tuple, *args) -> tuple:
+    """``model.fn(*args)`` (:func:`pfbench.models.contract.call`: an exception is one line naming
+    the function), checked to be a tuple or list of ``len(names)`` results."""
+    out = call(model, fn, {fn: "method 'mpf'"}, *args)
+    if not isinstance(out, (tuple, list)) or len(out) != len(names):
+        got = f"{len(out)} values" if isinstance(out, (tuple, list)) else type(out).__name__
+        raise InputError(f"model {model.name or type(model).__name__!r}: {fn}() must return "
+                         f"({', '.join(names)}), got {got}")
+    return tuple(out)
+
+
 def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
-    """Call the model's structure functions once on two particles and check what they return."""
+    """Call the model's structure functions once on a probe block and check what they return."""
     p = model.params()
-    n, d_n, d_l, n_y = 2, idx_n.size, idx_l.size, int(model.n_y)
+    n, d_n, d_l, n_y = PROBE, idx_n.size, idx_l.size, int(model.n_y)
 
     def check(fn, arr, shape):
         a = np.asarray(arr)
@@ -365,12 +378,12 @@ def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
         xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
     else:
         xn = np.zeros((n, 0))
-    out = model.cl_transition(xn, u[0], 0, p)
+    out = _returns(model, "cl_transition", ("f^n", "A^n", "f^l", "A^l"), xn, u[0], 0, p)
     shapes = ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l))
     for f, arr, shape in zip(("f^n", "A^n", "f^l", "A^l"), out, shapes):
         check(f"cl_transition ({f})", arr, shape)
-    check("cl_constrain", model.cl_constrain(xn.copy(), p), (n, d_n))
-    h, C = model.cl_observation(xn, np.tile(m0, (n, 1)), u[0], 0, p)
+    check("cl_constrain", call(model, "cl_constrain", {"cl_constrain": "method 'mpf'"}, xn.copy(), p), (n, d_n))
+    h, C = _returns(model, "cl_observation", ("h", "C"), xn, np.tile(m0, (n, 1)), u[0], 0, p)
     check("cl_observation (h)", h, (n, n_y))
     check("cl_observation (C)", C, (n, n_y, d_l))
 
@@ -510,7 +523,7 @@ def run_kalman(model, y, u=None, *, backend: str = "numba") -> FilterResult:
     ``ess`` NaN and the covariances filled."""
     y, u = check_inputs(model, y, u)
     if _declares_structure(model):
-        d_n = model.n_x - len(tuple(model.linear_states))
+        d_n = model.n_x - linear_indices(model).size
         if d_n > 0:
             raise UnsupportedError(
                 f"method 'kalman' needs every state of model {model.name or type(model).__name__!r} "

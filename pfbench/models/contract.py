@@ -19,8 +19,11 @@ function                       called as                                      re
 ``predictive_log_likelihood``  ``predictive_log_likelihood(y_t, x_prev, ...)``  (n,)
 =============================  =============================================  =============
 
+A model that declares a linear-Gaussian structure has valid ``linear_states``
+(:func:`linear_indices`), and its ``cl_transition``, ``cl_observation`` and ``cl_constrain`` are
+``@staticmethod``\ s too; :func:`pfbench.filters.marginalized.structure` checks what they return.
 An exception raised by the model's own code is reported with its type and message (``pfbench
---debug`` shows the traceback). :func:`numba_failure` does the same for code numba cannot compile:
+--debug`` shows the traceback; :func:`call`). :func:`numba_failure` does the same for code numba cannot compile:
 it compiles the functions the model defines one by one on the probe's arguments to name the one
 that fails.
 """
@@ -34,7 +37,7 @@ import numpy as np
 from ..errors import InputError, PfbenchError
 
 FUNCTIONS = ("initial", "transition", "log_likelihood", "observe", "proposal", "proposal_log_weight",
-             "predictive_log_likelihood")
+             "predictive_log_likelihood", "cl_transition", "cl_observation", "cl_constrain")
 PROBE = 3   # particles in the probe block
 
 
@@ -74,13 +77,32 @@ def _probe_args(model, y, u) -> dict:
     n_prop = getattr(model, "n_proposal_noise", None)
     return {"p": p, "n": n, "y0": np.asarray(y[0]), "u0": np.asarray(u[0]),
             "noise": np.zeros((n, int(model.n_noise))), "obs_noise": np.zeros((n, int(model.obs_noise_dim))),
-            "prop_noise": np.zeros((n, int(model.n_noise if n_prop is None else n_prop)))}
+            "prop_noise": np.zeros((n, int(model.n_noise if n_prop is None else n_prop))),
+            "linear": None if getattr(model, "linear_states", None) is None else linear_indices(model)}
+
+
+def linear_indices(model) -> np.ndarray:
+    """The model's ``linear_states`` as distinct int64 indices of x^l in 0..n_x-1, at least one;
+    else an InputError."""
+    raw = np.asarray(model.linear_states)
+    n_x = int(model.n_x)
+    if (raw.ndim != 1 or raw.size == 0 or raw.dtype.kind not in "iu" or len(set(raw.tolist())) != raw.size
+            or raw.min() < 0 or raw.max() >= n_x):
+        raise InputError(f"model {_name(model)!r}: linear_states must be a sequence of distinct state "
+                         f"indices in 0..{n_x - 1} (integers), at least one, got {model.linear_states!r}")
+    return raw.astype(np.int64)
 
 
 def _calls(a: dict, x, want_x: tuple, want_y: tuple) -> tuple:
-    """(function, shape it returns, its arguments on the probe block ``x``) after ``initial``."""
+    """(function, shape it returns, its arguments on the probe block ``x``) after ``initial``; the
+    structure functions' shapes are checked by :func:`pfbench.filters.marginalized.structure`."""
     p, y0, u0 = a["p"], a["y0"], a["u0"]
-    return (("transition", want_x, (x, u0, 0, a["noise"], p)),
+    structure = ()
+    if a["linear"] is not None:
+        xn = np.zeros((a["n"], x.shape[1] - a["linear"].size))
+        structure = (("cl_transition", None, (xn, u0, 0, p)), ("cl_constrain", None, (xn, p)),
+                     ("cl_observation", None, (xn, np.zeros((a["n"], a["linear"].size)), u0, 0, p)))
+    return structure + (("transition", want_x, (x, u0, 0, a["noise"], p)),
             ("log_likelihood", (a["n"],), (y0, x, u0, 0, p)),
             ("observe", want_y, (x, u0, 0, a["obs_noise"], p)),
             ("proposal", want_x, (x, y0, u0, 0, a["prop_noise"], p)),
@@ -88,7 +110,7 @@ def _calls(a: dict, x, want_x: tuple, want_y: tuple) -> tuple:
             ("predictive_log_likelihood", (a["n"],), (y0, x, u0, 0, p)))
 
 
-def _call(model, fn: str, needs: dict, *args):
+def call(model, fn: str, needs: dict, *args):
     """``model.fn(*args)``; None when the model refuses on purpose (a PfbenchError, e.g. "use
     method='guided'") and the run does not need ``fn``; that refusal as it is when it does."""
     try:
@@ -125,13 +147,13 @@ def check_model(model, y, u, needs: dict | None = None) -> None:
     n, n_x, n_y = a["n"], int(model.n_x), int(model.n_y)
     if "initial" not in have:
         return
-    x = _call(model, "initial", needs, np.random.default_rng(0), n, a["p"])
+    x = call(model, "initial", needs, np.random.default_rng(0), n, a["p"])
     if x is None:
         return
     x = _shape(model, "initial", x, (n, n_x))
     for fn, want, args in _calls(a, x, (n, n_x), (n, n_y)):
-        if fn in have:
-            out = _call(model, fn, needs, *args)
+        if fn in have and want is not None:
+            out = call(model, fn, needs, *args)
             if out is not None:
                 _shape(model, fn, out, want)
 

@@ -265,6 +265,74 @@ def test_malformed_structure_is_an_input_error():
         pfbench.run_filter(Mixed(), np.zeros((3, 2)), method="mpf", n_particles=5, ess_threshold=0.5)
 
 
+class _NoStaticObservation(Mixed):
+    def cl_observation(xn, xl, u, t, p):            # forgot @staticmethod
+        return Mixed.cl_observation(xn, xl, u, t, p)
+
+
+class _RaisingNoise(Mixed):
+    def cl_noise(self):
+        raise ZeroDivisionError("boom in the user's code")
+
+
+class _ThreeValues(Mixed):
+    @staticmethod
+    def cl_transition(xn, u, t, p):
+        fn, An, fl, Al = Mixed.cl_transition(xn, u, t, p)
+        return fn, An, fl
+
+
+class _InfiniteQ(Mixed):
+    Q = np.diag([0.3, np.inf, 0.2])
+
+
+class _FloatIndices(Mixed):
+    linear_states = (1.0, 2.7)
+
+
+class _NaNPrior(Mixed):
+    def cl_prior(self):
+        return np.array([np.nan, 0.0]), np.eye(2)
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the probe of transition with an infinite Q
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("model, needle", [
+    (_NoStaticObservation(), "cl_observation must be a @staticmethod"),
+    (_RaisingNoise(), "cl_noise() raised ZeroDivisionError: boom in the user's code"),
+    (_ThreeValues(), "cl_transition() must return (f^n, A^n, f^l, A^l), got 3 values"),
+    (_InfiniteQ(), "Q must be finite"),
+    (_FloatIndices(), "linear_states must be a sequence of distinct state indices in 0..2 (integers)"),
+    (_NaNPrior(), "the prior mean m0 of x^l must be finite"),
+])
+def test_mistakes_in_the_structure_are_one_line_naming_the_function(model, needle, backend):
+    """A mistake in a user's linear-Gaussian structure is an InputError naming it, before the run,
+    on both backends. Catches each check dropped: the run then ended in a raw TypeError, a
+    ZeroDivisionError or an unpacking ValueError (internal errors), ran on indices 1 and 2 taken
+    from 1.0 and 2.7, or ran with an infinite Q or a NaN prior to a wrong or NaN result."""
+    with pytest.raises(InputError) as err:
+        pfbench.run_filter(model, np.zeros((3, 2)), method="mpf", n_particles=5, backend=backend)
+    assert needle in str(err.value) and "\n" not in str(err.value)
+
+
+def test_structure_code_numba_cannot_compile_is_named():
+    """cl_transition calling the class's own method runs in Python, fails numba's typing, and the
+    error names it (compiled alone on the probe). Catches the structure functions left out of the
+    functions compiled one by one (then: a raw numba TypingError, an internal error)."""
+    class CallsTheClass(Mixed):
+        @staticmethod
+        def cl_transition(xn, u, t, p):
+            return CallsTheClass.helper(xn, u, t, p)
+
+        @staticmethod
+        def helper(xn, u, t, p):
+            return Mixed.cl_transition(xn, u, t, p)
+
+    pfbench.run_filter(CallsTheClass(), np.zeros((3, 2)), method="mpf", n_particles=5, backend="numpy")
+    with pytest.raises(InputError, match="numba cannot compile cl_transition"):
+        pfbench.run_filter(CallsTheClass(), np.zeros((3, 2)), method="mpf", n_particles=5, backend="numba")
+
+
 # ----------------------------------------------------------------------------- (e) d_n = 0
 def test_all_linear_models_run_one_copy():
     model = get("ob3", version=1)
