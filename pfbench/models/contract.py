@@ -21,7 +21,7 @@ function                       called as                                      re
 
 A model that declares a linear-Gaussian structure has valid ``linear_states``
 (:func:`linear_indices`), and its ``cl_transition``, ``cl_observation`` and ``cl_constrain`` are
-``@staticmethod``\ s too; :func:`pfbench.filters.marginalized.structure` checks what they return.
+each a ``@staticmethod`` too; :func:`pfbench.filters.marginalized.structure` checks what they return.
 An exception raised by the model's own code is reported with its type and message (``pfbench
 --debug`` shows the traceback; :func:`call`). :func:`numba_failure` does the same for code numba cannot compile:
 it compiles the functions the model defines one by one on the probe's arguments to name the one
