@@ -61,7 +61,7 @@ from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
-from ..models.contract import PROBE, call, linear_indices
+from ..models.contract import PROBE, call_returning, linear_indices
 from ..resampling import Scheme
 from ..methods import check_backend, check_dtype
 from .inputs import check_inputs, seed_sequence
@@ -314,7 +314,7 @@ def structure(model, y, u) -> dict:
     idx_l = linear_indices(model)
     idx_n = np.array([i for i in range(n_x) if i not in set(idx_l.tolist())], dtype=np.int64)
     d_n, d_l = idx_n.size, idx_l.size
-    Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in _returns(model, "cl_noise", ("Q", "R")))
+    Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in call_returning(model, "cl_noise", ("Q", "R")))
     if Q.shape != (n_x, n_x) or R.shape != (n_y, n_y):
         raise InputError(f"{name}.cl_noise must return Q ({n_x}, {n_x}) and R ({n_y}, {n_y}), "
                          f"got {Q.shape} and {R.shape}")
@@ -327,7 +327,7 @@ def structure(model, y, u) -> dict:
     if corr:  # w^l = T w^n + wbar, T = Q^ln (Q^n)^-1, Cov wbar = Q^l - T Q^nl
         T = np.linalg.solve(Qn, Qnl).T
         Ql = Ql - T @ Qnl
-    m0, P0 = _returns(model, "cl_prior", ("m0", "P0"))
+    m0, P0 = call_returning(model, "cl_prior", ("m0", "P0"))
     m0 = np.asarray(m0, dtype=np.float64).reshape(-1)
     P0 = np.atleast_2d(np.asarray(P0, dtype=np.float64))
     if m0.shape != (d_l,) or P0.shape != (d_l, d_l):
@@ -350,17 +350,6 @@ def structure(model, y, u) -> dict:
                 W=c(W), rvar=c(rvar), whiten=whiten, logdet=logdet, yw=c(yw), m0=c(m0), P0=c(P0))
 
 
-def _returns(model, fn: str, names: tuple, *args) -> tuple:
-    """``model.fn(*args)`` (:func:`pfbench.models.contract.call`: an exception is one line naming
-    the function), checked to be a tuple or list of ``len(names)`` results."""
-    out = call(model, fn, {fn: "method 'mpf'"}, *args)
-    if not isinstance(out, (tuple, list)) or len(out) != len(names):
-        got = f"{len(out)} values" if isinstance(out, (tuple, list)) else type(out).__name__
-        raise InputError(f"model {model.name or type(model).__name__!r}: {fn}() must return "
-                         f"({', '.join(names)}), got {got}")
-    return tuple(out)
-
-
 def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
     """Call the model's structure functions once on a probe block and check what they return."""
     p = model.params()
@@ -378,12 +367,12 @@ def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
         xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
     else:
         xn = np.zeros((n, 0))
-    out = _returns(model, "cl_transition", ("f^n", "A^n", "f^l", "A^l"), xn, u[0], 0, p)
+    out = call_returning(model, "cl_transition", ("f^n", "A^n", "f^l", "A^l"), xn, u[0], 0, p)
     shapes = ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l))
     for f, arr, shape in zip(("f^n", "A^n", "f^l", "A^l"), out, shapes):
         check(f"cl_transition ({f})", arr, shape)
-    check("cl_constrain", call(model, "cl_constrain", {"cl_constrain": "method 'mpf'"}, xn.copy(), p), (n, d_n))
-    h, C = _returns(model, "cl_observation", ("h", "C"), xn, np.tile(m0, (n, 1)), u[0], 0, p)
+    check("cl_constrain", call_returning(model, "cl_constrain", None, xn.copy(), p), (n, d_n))
+    h, C = call_returning(model, "cl_observation", ("h", "C"), xn, np.tile(m0, (n, 1)), u[0], 0, p)
     check("cl_observation (h)", h, (n, n_y))
     check("cl_observation (C)", C, (n, n_y, d_l))
 

@@ -125,6 +125,18 @@ def call(model, fn: str, needs: dict, *args):
                          + (f": {first}" if first else "") + " (pfbench --debug shows the traceback)") from exc
 
 
+def call_returning(model, fn: str, names: tuple | None, *args):
+    """``model.fn(*args)`` for a function the run needs (:func:`call`), checked to return a tuple or
+    list of one result per name of ``names`` (None: any one value); an InputError otherwise."""
+    out = call(model, fn, {fn: "the run"}, *args)
+    if names is None:
+        return out
+    if not isinstance(out, (tuple, list)) or len(out) != len(names):
+        got = f"{len(out)} values" if isinstance(out, (tuple, list)) else type(out).__name__
+        raise InputError(f"model {_name(model)!r}: {fn}() must return ({', '.join(names)}), got {got}")
+    return tuple(out)
+
+
 def _shape(model, fn: str, value, want: tuple) -> np.ndarray:
     arr = np.asarray(value)
     if arr.shape != want or not np.issubdtype(arr.dtype, np.number):
