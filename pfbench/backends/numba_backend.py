@@ -12,6 +12,7 @@ import numpy as np
 from numba.core.errors import NumbaPendingDeprecationWarning
 
 from ..methods import Estimate
+from ..models.contract import compiled_model_code
 from ..procs import free_cores
 from ..resampling import MERGED
 from . import compile_helper, mpf_work, native_call, pcg64
@@ -78,7 +79,7 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
 
         a, b, c = (int(v) for v in _call_addresses(driver, args, find))
         args = args[:-1] + (settings._replace(pass_a=a, pass_b=b, merge=c),)
-        with held():  # the generators' unboxing (interrupts.held)
+        with held(), compiled_model_code(model):  # held: the generators' unboxing (interrupts.held)
             if not parallel:
                 driver(*args)
                 return
@@ -141,7 +142,8 @@ def run_mpf(model, p, rng, xn, s, u, scheme, out) -> None:
         addresses = _call_addresses(mod.run_linear, args, lambda: native_addresses(
             model, "mpf", mod, mod.run_linear, args,
             [(name, *_step_calls(st, out, work)[name]) for name in mod.LINEAR_CALLS]))
-        mod.run_linear(*args[:-1], addresses)
+        with compiled_model_code(model):
+            mod.run_linear(*args[:-1], addresses)
         return
     mod = build("mpf", model, scheme)
     args = (p, rng, u, st, out, work, int(scheme), np.zeros(len(mod.RUN_CALLS), np.int64))
@@ -152,7 +154,7 @@ def run_mpf(model, p, rng, xn, s, u, scheme, out) -> None:
                                 here=_RUN_HERE)
 
     addresses = _call_addresses(mod.run, args, find)
-    with held():  # the generator's unboxing (interrupts.held)
+    with held(), compiled_model_code(model):  # held: the generator's unboxing (interrupts.held)
         mod.run(*args[:-1], addresses)
 
 
@@ -224,7 +226,7 @@ def run_guided(model, kind, p, rng, y, u, particles, out, settings):
     args = (p, rng, y, u, particles, out, settings)
     propose, weight = _call_addresses(driver, args, lambda: native_addresses(
         model, "guided", mod, driver, args, _model_calls(kind, p, y, u, particles.x, settings.n_noise)))
-    with held():  # the generator's unboxing (interrupts.held)
+    with held(), compiled_model_code(model):  # held: the generator's unboxing (interrupts.held)
         driver(*args[:-1], settings._replace(propose=int(propose), weight=int(weight)))
 
 

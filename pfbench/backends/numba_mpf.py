@@ -20,6 +20,9 @@ from pfbench.backends.numba_mpf_steps import kalman_update as _kalman_update
 from pfbench.backends.numba_mpf_steps import mixture_moments as _mixture_moments
 from pfbench.backends.numba_mpf_steps import sandwich as _sandwich
 from pfbench.backends.numba_mpf_steps import time_update as _time_update
+from pfbench.backends.numba_mpf_steps import CONSTRAIN as _CONSTRAIN
+from pfbench.backends.numba_mpf_steps import OBSERVATION as _OBSERVATION
+from pfbench.backends.numba_mpf_steps import TRANSITION as _TRANSITION
 from pfbench.backends.numba_mpf_steps import copy_into as _copy_into
 from pfbench.backends.numba_mpf_steps import normals_into as _normals_into
 from pfbench.backends.native_call import caller as _caller
@@ -60,24 +63,24 @@ def _transition_into(xn, u, t, p, tn, tl, model_address):
     """``cl_transition(xn, u, t, p)`` into f^n, A^n (``tn``) and f^l, A^l (``tl``,
     :class:`~pfbench.backends.mpf_work.Affine`)."""
     a, b, c, d = _call4(_cl_transition, model_address, xn, u, t, p)
-    _copy_into(a, tn.f)
-    _copy_into(b, tn.A)
-    _copy_into(c, tl.f)
-    _copy_into(d, tl.A)
+    _copy_into(a, tn.f, _TRANSITION)
+    _copy_into(b, tn.A, _TRANSITION)
+    _copy_into(c, tl.f, _TRANSITION)
+    _copy_into(d, tl.A, _TRANSITION)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _observation_into(xn, xl, u, t, p, obs, model_address):
     """``cl_observation(xn, xl, u, t, p)`` into h, C (``obs``)."""
     a, b = _call5(_cl_observation, model_address, xn, xl, u, t, p)
-    _copy_into(a, obs.f)
-    _copy_into(b, obs.A)
+    _copy_into(a, obs.f, _OBSERVATION)
+    _copy_into(b, obs.A, _OBSERVATION)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _constrain_into(xn, p, out, model_address):
     """``cl_constrain(xn, p)`` into ``out``."""
-    _copy_into(_call2(_cl_constrain, model_address, xn, p), out)
+    _copy_into(_call2(_cl_constrain, model_address, xn, p), out, _CONSTRAIN)
 
 
 _transition_into = _b.shared("_transition_into", _transition_into)
@@ -179,12 +182,12 @@ def run_linear(p, u, st, out, work, addresses):
     for t in range(st.meas.yw.shape[0]):
         ut = u[t]
         _, _, fl_, Al_ = _cl_transition(xn, ut, t, p)
-        _copy_into(fl_, lin.f)
-        _copy_into(Al_, lin.A)
+        _copy_into(fl_, lin.f, _TRANSITION)
+        _copy_into(Al_, lin.A, _TRANSITION)
         _call5(_time_update, addresses[0], lin, cond, st.noise.Ql, work.APl, pred)
         h_, C_ = _cl_observation(xn, pred.m, ut, t, p)
-        _copy_into(h_, obs.f)
-        _copy_into(C_, obs.A)
+        _copy_into(h_, obs.f, _OBSERVATION)
+        _copy_into(C_, obs.A, _OBSERVATION)
         _call7(_kalman_update, addresses[1], obs, pred, st.meas, t, work.upd, wts.ll, cond)
         v = _valid(wts.ll[0])
         deg = not (v > -_np.inf)

@@ -12,6 +12,7 @@ import numpy as np
 from pfbench.backends.cache import njit
 from pfbench.backends.pcg64 import fill_normals
 from pfbench.models.base import LOG_2PI
+from pfbench.models.contract import RESHAPED
 
 
 @njit(nogil=True, no_cpython_wrapper=True)
@@ -214,12 +215,27 @@ def mixture_moments(wu, total, mom, xn, post, split, est, cov):
                 cov[idx_l[b], idx_l[a]] += v
 
 
+#: ``copy_into``'s codes of the structure function whose result it copies, and the messages a
+#: changed shape raises (constants, as compiled code needs)
+TRANSITION, OBSERVATION, CONSTRAIN = 0, 1, 2
+_RESHAPED_TRANSITION = "cl_transition" + RESHAPED
+_RESHAPED_OBSERVATION = "cl_observation" + RESHAPED
+_RESHAPED_CONSTRAIN = "cl_constrain" + RESHAPED
+
+
 @njit(nogil=True)
-def copy_into(src, dst):
-    """dst[...] = src for a float64 C ``dst`` and ``src`` of its shape, any dtype and layout (a ValueError
-    for another shape): one flat loop, as the inner axes (d_n, d_l, n_y) are too short for nested ones."""
+def copy_into(src, dst, fn):
+    """dst[...] = src for a float64 C ``dst`` and ``src`` of its shape, any dtype and layout: one flat
+    loop, as the inner axes (d_n, d_l, n_y) are too short for nested ones. ``src`` of another shape
+    (a model whose structure function ``fn``, a code above, changed the shapes it returns after the
+    check before the run) is a ValueError naming ``fn``
+    (:func:`pfbench.models.contract.compiled_model_code` names the model)."""
     if src.shape != dst.shape:
-        raise ValueError("a structure function returned an array of another shape")
+        if fn == TRANSITION:
+            raise ValueError(_RESHAPED_TRANSITION)
+        if fn == OBSERVATION:
+            raise ValueError(_RESHAPED_OBSERVATION)
+        raise ValueError(_RESHAPED_CONSTRAIN)
     s = np.ascontiguousarray(src).reshape(src.size)
     d = dst.reshape(dst.size)
     for i in range(d.size):

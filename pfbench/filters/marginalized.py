@@ -61,13 +61,14 @@ from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
-from ..models.contract import PROBE, call_returning, linear_indices
+from ..models.contract import PROBE, call, call_returning, linear_indices, name_of, returned
 from ..resampling import Scheme
 from ..methods import check_backend, check_dtype
 from .inputs import check_inputs, seed_sequence
 from .result import FilterResult
 
 _CL_FUNCTIONS = ("cl_transition", "cl_observation", "cl_noise", "cl_prior")
+_NEEDED = {fn: "the marginalized PF" for fn in ("initial", "cl_transition", "cl_constrain", "cl_observation")}
 
 
 # --------------------------------------------------------------------------- the step math
@@ -301,12 +302,12 @@ def structure(model, y, u) -> dict:
     Returns the index arrays ``idx_n``/``idx_l``, the noise blocks (``Qn``, decorrelated ``Ql``,
     ``T``, ``corr``), the measurement whitening (``W``, ``rvar``, ``whiten``, ``logdet``, the
     whitened measurements ``yw``) and the x^l prior (``m0``, ``P0``). The model's functions are
-    called once on two particles to check the shapes they return (numba would not).
+    called once on a probe block to check what they return (:func:`structure_check`).
     """
-    name = model.name or type(model).__name__
+    name = f"model {name_of(model)!r}"
     if not _declares_structure(model):
         raise UnsupportedError(
-            f"model {name!r} declares no conditionally linear-Gaussian substructure, which method "
+            f"{name} declares no conditionally linear-Gaussian substructure, which method "
             "'mpf'/'kalman' needs: set `linear_states` (indices of the states x^l that enter the "
             "transition and measurement linearly) and implement cl_transition, cl_observation, "
             "cl_noise and cl_prior (see pfbench.models.base.StateSpaceModel)")
@@ -316,7 +317,7 @@ def structure(model, y, u) -> dict:
     d_n, d_l = idx_n.size, idx_l.size
     Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in call_returning(model, "cl_noise", ("Q", "R")))
     if Q.shape != (n_x, n_x) or R.shape != (n_y, n_y):
-        raise InputError(f"{name}.cl_noise must return Q ({n_x}, {n_x}) and R ({n_y}, {n_y}), "
+        raise InputError(f"{name}: cl_noise() must return Q ({n_x}, {n_x}) and R ({n_y}, {n_y}), "
                          f"got {Q.shape} and {R.shape}")
     _psd(Q, f"{name}: Q", False)
     _psd(R, f"{name}: R", True)
@@ -331,7 +332,7 @@ def structure(model, y, u) -> dict:
     m0 = np.asarray(m0, dtype=np.float64).reshape(-1)
     P0 = np.atleast_2d(np.asarray(P0, dtype=np.float64))
     if m0.shape != (d_l,) or P0.shape != (d_l, d_l):
-        raise InputError(f"{name}.cl_prior must return m0 ({d_l},) and P0 ({d_l}, {d_l}), "
+        raise InputError(f"{name}: cl_prior() must return m0 ({d_l},) and P0 ({d_l}, {d_l}), "
                          f"got {m0.shape} and {P0.shape}")
     _psd(P0, f"{name}: the prior covariance P0 of x^l", False)
     if not np.all(np.isfinite(m0)):
@@ -344,37 +345,53 @@ def structure(model, y, u) -> dict:
         yw = np.ascontiguousarray(y @ W.T)
     else:
         W, rvar, logdet, yw = np.eye(n_y), np.diag(R).copy(), 0.0, y
-    _check_shapes(model, name, u, idx_n, idx_l, m0)
+    _check_shapes(model, u, idx_n, d_l, m0)
     c = np.ascontiguousarray
     return dict(idx_n=idx_n, idx_l=idx_l, d_n=d_n, d_l=d_l, Qn=c(Qn), Ql=c(Ql), T=c(T), corr=corr,
                 W=c(W), rvar=c(rvar), whiten=whiten, logdet=logdet, yw=c(yw), m0=c(m0), P0=c(P0))
 
 
-def _check_shapes(model, name, u, idx_n, idx_l, m0) -> None:
+def structure_check(model, n: int, d_n: int, d_l: int, n_y: int):
+    """``check(fn, out, step=None)``: ``out``, what the structure function ``fn`` returned on n
+    particles at ``step`` (None: in the check before the run), as a tuple of its arrays, else an
+    InputError naming the model, the function, the result and the step. Both backends check the
+    probe before the run; the NumPy driver checks every step; the compiled one copies each result
+    into an array of the expected shape and refuses another
+    (:func:`pfbench.backends.numba_mpf_steps.copy_into`)."""
+    returns = {"cl_transition": (("f^n", "A^n", "f^l", "A^l"), ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l))),
+               "cl_constrain": ((None,), ((n, d_n),)),
+               "cl_observation": (("h", "C"), ((n, n_y), (n, n_y, d_l)))}
+
+    def check(fn: str, out, step: int | None = None) -> tuple:
+        names, shapes = returns[fn]
+        arrays = (out,) if names == (None,) else returned(model, fn, out, names)
+        for label, arr, shape in zip(names, arrays, shapes):
+            a = np.asarray(arr)
+            if a.shape != shape:
+                at = f"at step {step}" if step is not None else "in the check before the run"
+                raise InputError(f"model {name_of(model)!r}: {fn}(){f' ({label})' if label else ''} returned "
+                                 f"an array of shape {a.shape} {at}, expected {shape} (n = {n} particles, "
+                                 f"d_n = {d_n}, d_l = {d_l}, n_y = {n_y})")
+        return arrays
+
+    return check
+
+
+def _check_shapes(model, u, idx_n, d_l, m0) -> None:
     """Call the model's structure functions once on a probe block and check what they return."""
     p = model.params()
-    n, d_n, d_l, n_y = PROBE, idx_n.size, idx_l.size, int(model.n_y)
-
-    def check(fn, arr, shape):
-        a = np.asarray(arr)
-        if a.shape != shape:
-            raise InputError(f"{name}.{fn} returned an array of shape {a.shape}, expected {shape} "
-                             f"(n = {n} particles, d_n = {d_n}, d_l = {d_l}, n_y = {n_y})")
-
+    n, d_n = PROBE, idx_n.size
+    check = structure_check(model, n, d_n, d_l, int(model.n_y))
+    xn = np.zeros((n, 0))
     if d_n:
-        x = np.asarray(model.initial(np.random.default_rng(0), n, p))
-        check("initial", x, (n, model.n_x))
+        x = np.asarray(call(model, "initial", _NEEDED, np.random.default_rng(0), n, p))
+        if x.shape != (n, int(model.n_x)):
+            raise InputError(f"model {name_of(model)!r}: initial() returned an array of shape {x.shape}, "
+                             f"expected {(n, int(model.n_x))}")
         xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
-    else:
-        xn = np.zeros((n, 0))
-    out = call_returning(model, "cl_transition", ("f^n", "A^n", "f^l", "A^l"), xn, u[0], 0, p)
-    shapes = ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l))
-    for f, arr, shape in zip(("f^n", "A^n", "f^l", "A^l"), out, shapes):
-        check(f"cl_transition ({f})", arr, shape)
-    check("cl_constrain", call_returning(model, "cl_constrain", None, xn.copy(), p), (n, d_n))
-    h, C = call_returning(model, "cl_observation", ("h", "C"), xn, np.tile(m0, (n, 1)), u[0], 0, p)
-    check("cl_observation (h)", h, (n, n_y))
-    check("cl_observation (C)", C, (n, n_y, d_l))
+    check("cl_transition", call(model, "cl_transition", _NEEDED, xn, u[0], 0, p))
+    check("cl_constrain", call(model, "cl_constrain", _NEEDED, xn.copy(), p))
+    check("cl_observation", call(model, "cl_observation", _NEEDED, xn, np.tile(m0, (n, 1)), u[0], 0, p))
 
 
 # --------------------------------------------------------------------------- drivers
@@ -394,12 +411,13 @@ def _run_numpy(model, p, rng, n, s, u, scheme, out) -> None:
     m = np.tile(s["m0"], (n, 1))
     P = np.tile(s["P0"], (n, 1, 1))
     lw = np.full(n, -np.log(n))
+    check = structure_check(model, n, d_n, s["d_l"], yw.shape[1])
     for t in range(yw.shape[0]):
         z = rng.standard_normal((n, d_n)) if d_n else np.zeros((n, 0))
-        fn, An, fl, Al = cl_transition(xn, u[t], t, p)
+        fn, An, fl, Al = check("cl_transition", cl_transition(xn, u[t], t, p), t)
         xn, m_pred, P_pred = kalman_predict(fn, An, fl, Al, m, P, z, s["Qn"], s["Ql"], s["T"], s["corr"])
-        xn = cl_constrain(xn, p)
-        h, C = cl_observation(xn, m_pred, u[t], t, p)
+        xn, = check("cl_constrain", cl_constrain(xn, p), t)
+        h, C = check("cl_observation", cl_observation(xn, m_pred, u[t], t, p), t)
         ll, m, P = kalman_update(h, C, m_pred, P_pred, yw[t], s["W"], s["rvar"], s["whiten"], s["logdet"])
         wu, _, mx, total, deg = weigh(lw, valid_log_likelihood(ll))
         degen[t] = deg
@@ -515,7 +533,7 @@ def run_kalman(model, y, u=None, *, backend: str = "numba") -> FilterResult:
         d_n = model.n_x - linear_indices(model).size
         if d_n > 0:
             raise UnsupportedError(
-                f"method 'kalman' needs every state of model {model.name or type(model).__name__!r} "
+                f"method 'kalman' needs every state of model {name_of(model)!r} "
                 f"in its linear substructure, but {d_n} state(s) are nonlinear "
                 f"(linear_states = {tuple(model.linear_states)}); use method 'mpf'")
     s, _, out, elapsed = _filter(model, y, u, n=1, backend=backend, resampling="systematic", seed=0)

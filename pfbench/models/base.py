@@ -254,27 +254,30 @@ class StateSpaceModel:
         p = self.params()
         u = self.inputs(rng, n_steps)
         u_arr = self.input_array(u, n_steps)
-        from .contract import check_model   # the contract first: a mistake reads as one line
+        from .contract import check_model, named_model_errors   # a mistake reads as one line
 
         check_model(self, np.zeros((1, self.n_y)), u_arr[:1],
                     {fn: "simulate()" for fn in ("initial", "transition", "observe")})
-        x = np.asarray(self.initial(rng, 1, p), dtype=np.float64).reshape(1, self.n_x)
-        x0 = x[0].copy()
-        xs = np.empty((n_steps, self.n_x))
-        ys = np.empty((n_steps, self.n_y))
-        for t in range(n_steps):
-            v = rng.standard_normal((1, self.n_noise))
-            x = np.asarray(self.transition(x, u_arr[t], t, v, p), dtype=np.float64).reshape(1, self.n_x)
-            n = rng.standard_normal((1, self.obs_noise_dim))
-            ys[t] = np.asarray(self.observe(x, u_arr[t], t, n, p)).reshape(self.n_y)
-            xs[t] = x[0]
+        with named_model_errors(self, None, None, "numpy"):   # and one raised at a later step too
+            x = np.asarray(self.initial(rng, 1, p), dtype=np.float64).reshape(1, self.n_x)
+            x0 = x[0].copy()
+            xs = np.empty((n_steps, self.n_x))
+            ys = np.empty((n_steps, self.n_y))
+            for t in range(n_steps):
+                v = rng.standard_normal((1, self.n_noise))
+                x = np.asarray(self.transition(x, u_arr[t], t, v, p), dtype=np.float64).reshape(1, self.n_x)
+                n = rng.standard_normal((1, self.obs_noise_dim))
+                ys[t] = np.asarray(self.observe(x, u_arr[t], t, n, p)).reshape(self.n_y)
+                xs[t] = x[0]
         return Trajectory(x=xs, y=ys, u=u, x0=x0)
 
     def input_array(self, u, n_steps: int) -> np.ndarray:
         """Inputs as a C-contiguous float64 (n_steps, n_u) array (n_u may be 0)."""
         if u is None:
             if self.n_u:
-                raise InputError(f"model {self.name!r} needs inputs u of shape (n_steps, {self.n_u})")
+                from .contract import name_of
+
+                raise InputError(f"model {name_of(self)!r} needs inputs u of shape (n_steps, {self.n_u})")
             return np.zeros((n_steps, 0))
         u = np.ascontiguousarray(u, dtype=np.float64)
         if u.ndim == 1:

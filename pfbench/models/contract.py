@@ -26,6 +26,11 @@ An exception raised by the model's own code is reported with its type and messag
 --debug`` shows the traceback; :func:`call`). :func:`numba_failure` does the same for code numba cannot compile:
 it compiles the functions the model defines one by one on the probe's arguments to name the one
 that fails.
+
+During the run (:func:`named_model_errors`, :func:`compiled_model_code`): an exception raised in
+the model's code is one line too, naming the function and the step on the NumPy backend (found in
+the traceback), and the model on numba, whose compiled code keeps no traceback. An exception with no
+frame of the model's functions is pfbench's and passes unchanged.
 """
 from __future__ import annotations
 
@@ -41,8 +46,19 @@ FUNCTIONS = ("initial", "transition", "log_likelihood", "observe", "proposal", "
 PROBE = 3   # particles in the probe block
 
 
-def _name(model) -> str:
-    return str(getattr(model, "name", None) or type(model).__name__)
+#: the position of the step ``t`` among each function's arguments (the table above)
+_STEP_ARG = {"transition": 2, "log_likelihood": 3, "observe": 2, "proposal": 3, "proposal_log_weight": 4,
+             "predictive_log_likelihood": 3, "cl_transition": 2, "cl_observation": 3}
+#: how the compiled MPF reports a structure function whose array changed shape during the run
+#: (:func:`pfbench.backends.numba_mpf_steps.copy_into`); :func:`compiled_model_code` names the model
+RESHAPED = "() returned an array of another shape during the run than in the check before it"
+
+
+def name_of(model) -> str:
+    """The model's name for messages: its registered (or own) ``name``; a subclass that sets none is
+    named by its class, so a user's variant of a built-in model is not taken for the built-in."""
+    own = vars(model).get("name") or type(model).__dict__.get("name")
+    return str(own or type(model).__name__)
 
 
 def defined(model) -> set:
@@ -61,11 +77,11 @@ def _check_static(model, needs) -> set:
     for fn in FUNCTIONS:
         if fn not in have:
             if fn in needs:
-                raise InputError(f"model {_name(model)!r} defines no {fn}(), which {needs[fn]} needs "
+                raise InputError(f"model {name_of(model)!r} defines no {fn}(), which {needs[fn]} needs "
                                  "(see `pfbench.models.base`)")
             continue
         if not isinstance(inspect.getattr_static(type(model), fn), staticmethod):
-            raise InputError(f"model {_name(model)!r}: {fn} must be a @staticmethod (it takes no self; "
+            raise InputError(f"model {name_of(model)!r}: {fn} must be a @staticmethod (it takes no self; "
                              "put @staticmethod above its def)")
     return have
 
@@ -88,7 +104,7 @@ def linear_indices(model) -> np.ndarray:
     n_x = int(model.n_x)
     if (raw.ndim != 1 or raw.size == 0 or raw.dtype.kind not in "iu" or len(set(raw.tolist())) != raw.size
             or raw.min() < 0 or raw.max() >= n_x):
-        raise InputError(f"model {_name(model)!r}: linear_states must be a sequence of distinct state "
+        raise InputError(f"model {name_of(model)!r}: linear_states must be a sequence of distinct state "
                          f"indices in 0..{n_x - 1} (integers), at least one, got {model.linear_states!r}")
     return raw.astype(np.int64)
 
@@ -120,20 +136,30 @@ def call(model, fn: str, needs: dict, *args):
             raise
         return None
     except Exception as exc:   # the user's code: report it as theirs, not as a pfbench bug
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise InputError(f"model {_name(model)!r}: {fn}() raised {type(exc).__name__}"
-                         + (f": {first}" if first else "") + " (pfbench --debug shows the traceback)") from exc
+        raise _raised(model, f"{fn}()", exc) from exc
+
+
+def _raised(model, what: str, exc: BaseException, step=None, how: str = "pfbench --debug shows the traceback"):
+    """The one-line InputError for an exception ``exc`` of ``what`` (the model's function, at ``step``)."""
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    at = f" at step {step}" if step is not None else ""
+    return InputError(f"model {name_of(model)!r}: {what} raised {type(exc).__name__}{at}"
+                      + (f": {first}" if first else "") + f" ({how})")
 
 
 def call_returning(model, fn: str, names: tuple | None, *args):
-    """``model.fn(*args)`` for a function the run needs (:func:`call`), checked to return a tuple or
-    list of one result per name of ``names`` (None: any one value); an InputError otherwise."""
-    out = call(model, fn, {fn: "the run"}, *args)
+    """``model.fn(*args)`` for a function the run needs (:func:`call`), checked by :func:`returned`."""
+    return returned(model, fn, call(model, fn, {fn: "the run"}, *args), names)
+
+
+def returned(model, fn: str, out, names: tuple | None):
+    """``out``, what the model's ``fn`` returned, as a tuple of one result per name of ``names``
+    (None: ``out``, any one value); an InputError when it is not a tuple or list of that length."""
     if names is None:
         return out
     if not isinstance(out, (tuple, list)) or len(out) != len(names):
         got = f"{len(out)} values" if isinstance(out, (tuple, list)) else type(out).__name__
-        raise InputError(f"model {_name(model)!r}: {fn}() must return ({', '.join(names)}), got {got}")
+        raise InputError(f"model {name_of(model)!r}: {fn}() must return ({', '.join(names)}), got {got}")
     return tuple(out)
 
 
@@ -142,7 +168,7 @@ def _shape(model, fn: str, value, want: tuple) -> np.ndarray:
     if arr.shape != want or not np.issubdtype(arr.dtype, np.number):
         got = f"shape {arr.shape} of {arr.dtype}" if arr.ndim or np.issubdtype(arr.dtype, np.number) \
             else type(value).__name__
-        raise InputError(f"model {_name(model)!r}: {fn}() must return a float array of shape {want}, "
+        raise InputError(f"model {name_of(model)!r}: {fn}() must return a float array of shape {want}, "
                          f"got {got} (on a block of {PROBE} particles)")
     return arr.astype(np.float64)
 
@@ -197,21 +223,67 @@ def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
         except Exception as err:   # numba's typing / bytecode errors, or the model's own raise
             lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
             why = next((ln for ln in lines if not ln.startswith(("During:", "File", "^"))), type(err).__name__)
-            return InputError(f"model {_name(model)!r}: numba cannot compile {fn}(): {why} "
+            return InputError(f"model {name_of(model)!r}: numba cannot compile {fn}(): {why} "
                               "(--backend numpy runs plain Python; pfbench --debug shows numba's report)")
+    return None
+
+
+def _raised_in_model(model, exc: BaseException) -> InputError | None:
+    """:func:`_raised` for an exception raised inside one of the model's functions during the run
+    (found in its traceback, with the step from that function's ``t`` argument); None when no
+    frame of the traceback is the model's, or the exception is in compiled code (no frames)."""
+    codes = {}
+    for fn in defined(model):
+        f = inspect.getattr_static(type(model), fn)
+        f = getattr(f.__func__ if isinstance(f, staticmethod) else f, "__code__", None)
+        if f is not None:
+            codes[f] = fn
+    tb = exc.__traceback__
+    while tb is not None:   # outermost first: the function pfbench called, not a helper of it
+        fn = codes.get(tb.tb_frame.f_code)
+        if fn is not None:
+            step = None
+            if fn in _STEP_ARG and _STEP_ARG[fn] < tb.tb_frame.f_code.co_argcount:
+                step = tb.tb_frame.f_locals.get(tb.tb_frame.f_code.co_varnames[_STEP_ARG[fn]])
+            return _raised(model, f"{fn}()", exc, step if isinstance(step, (int, np.integer)) else None)
+        tb = tb.tb_next
     return None
 
 
 @contextlib.contextmanager
 def named_model_errors(model, y, u, backend: str):
-    """Turn a numba compile failure caused by the model's code into :func:`numba_failure`'s one-line
-    InputError (other exceptions pass unchanged)."""
+    """Around a run: an exception raised in the model's own code becomes a one-line InputError
+    naming the function and the step (:func:`_raised_in_model`); a numba compile failure caused by
+    the model's code becomes :func:`numba_failure`'s. Other exceptions pass unchanged."""
     try:
         yield
+    except (PfbenchError, MemoryError):   # MemoryError: the CLI's own message says what fits
+        raise
     except Exception as exc:
-        if backend != "numba" or not type(exc).__module__.startswith("numba"):
-            raise
-        named = numba_failure(model, y, u, exc)
+        if backend == "numba" and type(exc).__module__.startswith("numba"):
+            named = numba_failure(model, y, u, exc)
+        else:
+            named = _raised_in_model(model, exc)
         if named is None:
             raise
         raise named from exc
+
+
+@contextlib.contextmanager
+def compiled_model_code(model):
+    """Around a call of a compiled kernel that runs the model's functions: an exception the kernel
+    raises (a ``raise`` in the model's code, a division by zero in it, or
+    :data:`RESHAPED`) becomes a one-line InputError naming the model. Compiled code keeps no
+    traceback, so the function and the step are named by the same run on ``--backend numpy``.
+    numba's own errors (a compile failure) and MemoryError pass unchanged."""
+    try:
+        yield
+    except (PfbenchError, MemoryError):   # as in named_model_errors
+        raise
+    except Exception as exc:
+        if type(exc).__module__ != "builtins":
+            raise
+        if RESHAPED in str(exc):
+            raise InputError(f"model {name_of(model)!r}: {exc}") from exc
+        raise _raised(model, "its compiled code", exc, how="compiled code keeps no traceback: the same "
+                      "run with --backend numpy names the function and the step") from exc

@@ -3,12 +3,12 @@ import numba
 import numpy as np
 import pytest
 
-from pfbench.backends.numba_mpf_steps import copy_into
+from pfbench.backends.numba_mpf_steps import CONSTRAIN, OBSERVATION, TRANSITION, copy_into
 
 
 @numba.njit(cache=False)
-def _copy(src, dst):
-    copy_into(src, dst)
+def _copy(src, dst, fn=TRANSITION):
+    copy_into(src, dst, fn)
 
 
 @pytest.mark.parametrize("src", [
@@ -32,5 +32,14 @@ def test_copy_into_refuses_another_shape(src):
     """A model that returns another shape than the one it declared (same size or not) is an error,
     not memory read out of bounds. Catches: a missing shape check (the same-size (4, 3) source
     would then be copied in the wrong shape)."""
-    with pytest.raises(ValueError, match="another shape"):
+    with pytest.raises(ValueError, match=r"^cl_transition\(\) returned an array of another shape"):
         _copy(src, np.empty((3, 4)))
+
+
+@pytest.mark.parametrize("fn, name", [(TRANSITION, "cl_transition"), (OBSERVATION, "cl_observation"),
+                                      (CONSTRAIN, "cl_constrain")])
+def test_copy_into_names_the_structure_function(fn, name):
+    """The message names the function whose result changed shape. Catches the codes' messages
+    swapped or one message for all three."""
+    with pytest.raises(ValueError, match=rf"^{name}\(\) returned"):
+        _copy(np.zeros((3, 5)), np.empty((3, 4)), fn)

@@ -257,7 +257,8 @@ def test_malformed_structure_is_an_input_error():
             fn, An, fl, Al = Mixed.cl_transition(xn, u, t, p)
             return fn, An[:, :, :1], fl, Al
 
-    with pytest.raises(InputError, match=r"cl_transition \(A\^n\)"):
+    # Bad sets no name of its own: named by its class, not as the registered model it extends
+    with pytest.raises(InputError, match=r"^model 'Bad': cl_transition\(\) \(A\^n\) returned an array of shape"):
         run_mpf(Bad(), np.zeros((3, 2)), n_particles=5, backend="numpy")
     with pytest.raises(InputError, match="float64"):
         pfbench.run_filter(Mixed(), np.zeros((3, 2)), method="mpf", n_particles=5, dtype="float32")
@@ -331,6 +332,68 @@ def test_structure_code_numba_cannot_compile_is_named():
     pfbench.run_filter(CallsTheClass(), np.zeros((3, 2)), method="mpf", n_particles=5, backend="numpy")
     with pytest.raises(InputError, match="numba cannot compile cl_transition"):
         pfbench.run_filter(CallsTheClass(), np.zeros((3, 2)), method="mpf", n_particles=5, backend="numba")
+
+
+class _Late(Mixed):
+    """Mixed whose structure goes wrong from step 3 on, as p[2] says: 1 raises in cl_transition, 2
+    returns A^l of another shape, 3 returns C of another shape (one class: one numba compile)."""
+    name = "late_mixed"
+
+    def __init__(self, mode):
+        self.mode = float(mode)
+
+    def params(self):
+        return Mixed.params(self) + (self.mode,)
+
+    @staticmethod
+    def cl_transition(xn, u, t, p):
+        if p[2] == 1.0 and t >= 3:
+            raise ValueError("late in the user's code")
+        n = xn.shape[0]
+        An = np.zeros((n, 1, 2))
+        An[:, 0, 0] = 0.5
+        fl = np.zeros((n, 2))
+        fl[:, 0] = 0.1 * np.sin(xn[:, 0])
+        Al = np.zeros((n, 1 if p[2] == 2.0 and t >= 3 else 2, 2))
+        Al[:, 0, 0] = 0.9
+        Al[:, 0, 1] = 0.2
+        if Al.shape[1] == 2:
+            Al[:, 1, 0] = -0.2
+            Al[:, 1, 1] = 0.9
+        return np.arctan(xn), An, fl, Al
+
+    @staticmethod
+    def cl_observation(xn, xl, u, t, p):
+        n = xn.shape[0]
+        h = np.empty((n, 2))
+        h[:, 0] = xn[:, 0] ** 2 / 5
+        h[:, 1] = xl[:, 0] + np.cos(xn[:, 0]) * xl[:, 1]
+        C = np.zeros((n, 2, 1 if p[2] == 3.0 and t >= 3 else 2))
+        C[:, 1, 0] = 1.0
+        if C.shape[2] == 2:
+            C[:, 1, 1] = np.cos(xn[:, 0])
+        return h, C
+
+
+@pytest.mark.parametrize("mode, numpy_says, numba_says", [
+    (1, "cl_transition() raised ValueError at step 3: late in the user's code",
+     "its compiled code raised ValueError: late in the user's code (compiled code keeps no traceback"),
+    (2, "cl_transition() (A^l) returned an array of shape (5, 1, 2) at step 3, expected (5, 2, 2)",
+     "cl_transition() returned an array of another shape during the run"),
+    (3, "cl_observation() (C) returned an array of shape (5, 2, 1) at step 3, expected (5, 2, 2)",
+     "cl_observation() returned an array of another shape during the run"),
+])
+def test_structure_that_goes_wrong_after_the_check_is_one_line_naming_it(mode, numpy_says, numba_says):
+    """The check before the run sees step 0 only; a structure function that raises or changes its
+    shapes later is still one line naming the model and the function (and on NumPy the step).
+    Catches: the NumPy driver's per-step check dropped (an IndexError from the Kalman step), the
+    compiled copy's function codes swapped, the kernel call not wrapped (a raw ValueError)."""
+    for backend, says in (("numpy", numpy_says), ("numba", numba_says)):
+        with pytest.raises(InputError) as err:
+            pfbench.run_filter(_Late(mode), np.zeros((6, 2)), method="mpf", n_particles=5, backend=backend)
+        assert str(err.value).startswith("model 'late_mixed': ") and says in str(err.value), (backend, err.value)
+        assert "\n" not in str(err.value)
+    pfbench.run_filter(_Late(mode), np.zeros((3, 2)), method="mpf", n_particles=5)  # fine before step 3
 
 
 # ----------------------------------------------------------------------------- (e) d_n = 0

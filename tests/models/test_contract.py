@@ -137,6 +137,103 @@ def test_run_warns_of_a_non_finite_log_likelihood_with_its_first_step(tmp_path):
     assert strict.exit_code == 2 and "error: the log-likelihood is -inf from step 3 on" in strict.stderr
 
 
+def _user_helper(t):
+    raise ValueError(f"late in the user's code, t = {t}")
+
+
+class LateHelper(Good):
+    name = "latehelper"
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        if t >= 3:
+            _user_helper(t)                       # the error is the function pfbench called
+        return -0.5 * (y[0] - x[:, 0]) ** 2
+
+
+class LateRaise(Good):
+    name = "lateraise"
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        if t >= 3:
+            raise ValueError("late in the user's code")
+        return 0.9 * x + noise
+
+
+@pytest.mark.parametrize("method", ["bootstrap", "multipdf"])
+def test_an_exception_after_the_check_names_the_function_and_the_step(method):
+    """The check before the run sees step 0 only; a function that raises later is still one line,
+    on NumPy with the function and the step (from its traceback), on numba with the model (compiled
+    code keeps no traceback). Catches: the traceback walk dropped or reading the wrong argument as
+    the step, the numba kernel call not wrapped (a raw ValueError, which the CLI calls a pfbench bug)."""
+    kw = dict(method=method, n_particles=8, n_filters=2 if method == "multipdf" else 1)
+    for model, needle in ((LateHelper(), "log_likelihood() raised ValueError at step 3: late in the user's "
+                           "code, t = 3"), (LateRaise(), "transition() raised ValueError at step 3")):
+        with pytest.raises(InputError) as err:
+            pfbench.run_filter(model, np.zeros((6, 1)), backend="numpy", **kw)
+        assert str(err.value).startswith(f"model {model.name!r}: {needle}"), err.value
+    with pytest.raises(InputError) as err:
+        pfbench.run_filter(LateRaise(), np.zeros((6, 1)), backend="numba", **kw)
+    assert str(err.value).startswith("model 'lateraise': its compiled code raised ValueError: late in the "
+                                     "user's code (compiled code keeps no traceback"), err.value
+    assert "\n" not in str(err.value)
+
+
+def test_simulate_names_a_function_that_raises_at_a_later_step():
+    """simulate() checks step 0 like a run and names a later exception too. Catches its loop not
+    wrapped (a raw ValueError)."""
+    with pytest.raises(InputError, match=r"^model 'lateraise': transition\(\) raised ValueError at step 3"):
+        LateRaise().simulate(6)
+
+
+def test_a_guided_proposal_that_raises_after_the_check_is_named():
+    """As above for the guided family (its own kernel call). Catches that call not wrapped."""
+    class LateProposal(Guided):
+        name = "lateproposal"
+
+        @staticmethod
+        def proposal(x_prev, y, u, t, noise, p):
+            if t >= 3:
+                raise ValueError("late in the user's code")
+            return 0.9 * x_prev + noise
+
+    for backend, needle in (("numpy", "proposal() raised ValueError at step 3"),
+                            ("numba", "its compiled code raised ValueError")):
+        with pytest.raises(InputError) as err:
+            pfbench.run_filter(LateProposal(), np.zeros((6, 1)), method="guided", n_particles=8, backend=backend)
+        assert str(err.value).startswith(f"model 'lateproposal': {needle}"), err.value
+
+
+def test_a_pfbench_error_during_the_run_is_not_blamed_on_the_model(monkeypatch):
+    """An exception with no frame of the model's functions passes unchanged (the CLI then reports
+    a pfbench bug). Catches every exception during a run turned into the model's InputError."""
+    from pfbench.backends import numpy_backend
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("a bug in pfbench")
+
+    monkeypatch.setattr(numpy_backend, "run_group", broken)
+    with pytest.raises(RuntimeError, match="a bug in pfbench"):
+        pfbench.run_filter(LateRaise(), np.zeros((2, 1)), n_particles=8, backend="numpy")
+
+
+def test_a_subclass_that_sets_no_name_is_named_by_its_class():
+    """Catches the inherited name used: a user's variant of a built-in model read as the built-in."""
+    from pfbench.models import get
+    from pfbench.models.contract import name_of
+
+    ob1 = get("ob1")
+
+    class MyOb1(type(ob1)):
+        pass
+
+    named = type(ob1)()
+    named.name = "mine"
+    assert (name_of(ob1), name_of(MyOb1()), name_of(LateRaise()), name_of(named)) == ("ob1", "MyOb1", "lateraise",
+                                                                                     "mine")
+
+
 class Guided(Good):
     """Good with its own proposal (the prior: the weight is the log-likelihood)."""
     name = "guided"
