@@ -57,6 +57,7 @@ from pfbench.backends.numba_weights import block_weights as _pass_b
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import valid_log_likelihood as _valid
 from pfbench.methods import Method as _Method
+from pfbench.models.contract import RESHAPED as _RESHAPED
 from pfbench.resampling import Scheme as _Scheme
 
 _ASIR = int(_Method.ASIR)
@@ -67,6 +68,10 @@ _STRATIFIED = int(_Scheme.STRATIFIED)  # compared one by one below, so a scheme'
 #: particles per tile of the fused pass A: the tile's noise, new states and likelihoods stay in
 #: L1/L2, and the model's result arrays, allocated per tile, are a fixed cost per tile
 _TILE = 1024
+#: what a model function whose array changed shape after the check before the run raises (its
+#: rows are read and stored by index: a row more or fewer would be memory out of bounds)
+_RESHAPED_TRANSITION = "transition" + _RESHAPED
+_RESHAPED_LOG_LIKELIHOOD = "log_likelihood" + _RESHAPED
 _prange = _numba.prange
 #: passes A, B and C called through their addresses (:mod:`pfbench.backends.native_call`)
 _call_a = _caller(7)
@@ -260,6 +265,8 @@ def _pass_a(p, brng, y, u, work, settings, step):
             xn = _transition(_column_major(_tile64(xs, s, e, bin_)), ut, t, _column_major(noise), p)
         else:
             xn = _transition(_tile64(xs, s, e, bin_), ut, t, noise, p)
+        if xn.shape[0] != k or xn.shape[1] != xs.shape[1]:
+            raise ValueError(_RESHAPED_TRANSITION)
         # one type in both branches, so one likelihood call site (each is an inlined copy of the
         # model), and no any-layout array that a reassigned ``xn`` would unify to
         if first:
@@ -267,6 +274,8 @@ def _pass_a(p, brng, y, u, work, settings, step):
         else:
             xl = _store(xs[s:e], xn, bout)
         ll = _log_likelihood(yt, xl, ut, t, p)
+        if ll.shape[0] != k:
+            raise ValueError(_RESHAPED_LOG_LIKELIHOOD)
         las = la[s:e]  # the tile's rows as views from 0: no negative-index wraparound in the loops
         lws = lw[s:e]
         if first or asir:

@@ -33,6 +33,7 @@ import numpy as np
 from .. import resampling
 from .fastexp import exp_array as exp_weights
 from ..methods import Estimate, Method
+from ..models.contract import shaped
 
 
 def valid_log_likelihood(ll) -> np.ndarray:
@@ -180,8 +181,9 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             xg = x[g]
             first = 0.0
             if method == Method.ASIR:  # first stage
-                mu = transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p)
-                lam_all = valid_log_likelihood(log_likelihood(yt, mu, ut, t, p))
+                mu = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p),
+                            (n, n_x), t)
+                lam_all = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), (n,), t))
                 wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
                 if deg1:
@@ -193,8 +195,10 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             # transition noise: block b from its own stream (one block: the filter's stream)
             noise = np.concatenate([r.standard_normal((sl.stop - sl.start, n_noise), dtype=ptype)
                                     for r, sl in zip(brngs, blocks)])
-            xg[:] = transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p)
-            ll = valid_log_likelihood(log_likelihood(yt, xg.astype(np.float64), ut, t, p))
+            xg[:] = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p),
+                           (n, n_x), t)   # the check before the run saw step 0 only
+            ll = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut,
+                                                                                 t, p), (n,), t))
             if method == Method.ASIR:
                 ll = valid_log_likelihood(ll - lam)
             wu, cdf, m, total, deg = weigh(lw[g], ll, blocks)

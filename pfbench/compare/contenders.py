@@ -211,7 +211,7 @@ def _load_py(target: str, spec: str):
             name = f"pfbench_user_contenders.m{hashlib.sha1(key.encode()).hexdigest()[:10]}_{path.stem}"
             try:
                 _PY_MODULES[key] = import_path(name, key)
-            except Exception as exc:  # noqa: BLE001 - the user's code: one line
+            except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's code (sys.exit too): one line
                 raise InputError(f"--contender {spec}: {target} failed to import: {exc_reason(exc)}") from None
         return _PY_MODULES[key]
     try:
@@ -248,7 +248,7 @@ class PyContender(Contender):
     def warm_up(self, task, model, traj):
         try:
             self.func(model, traj.y[:2], None if traj.u is None else traj.u[:2], n_particles=2, seed=0)
-        except Exception:  # noqa: BLE001 - the timed runs report it
+        except (Exception, SystemExit):  # noqa: BLE001 - the timed runs report it
             pass
 
     def run(self, task, model, y, u, *, n_particles, seed, timeout):
@@ -257,7 +257,7 @@ class PyContender(Contender):
             raw = self.func(model, y, u, n_particles=n_particles, seed=seed)
         except RunFailed:
             raise
-        except Exception as exc:  # noqa: BLE001 - the user's code: a failed run, one line
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's code (sys.exit too): a failed run
             raise RunFailed(exc_reason(exc)) from None
         wall = time.perf_counter() - t0
         return normalise(raw, y.shape[0], model.n_x, wall)

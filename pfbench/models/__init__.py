@@ -31,7 +31,7 @@ import pkgutil
 import sys
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, PfbenchError
 from ..options import check_known, typed
 from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 
@@ -107,7 +107,7 @@ def load_files(paths) -> list[str]:
         _IMPORTING.append(key)
         try:
             import_path(name, key)
-        except Exception as exc:  # noqa: BLE001 - the user's code: report it in one line
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's code (sys.exit too): one line
             _REGISTRY.clear()
             _REGISTRY.update(before)
             if isinstance(exc, InputError):
@@ -229,6 +229,11 @@ def get(name: str, **params) -> StateSpaceModel:
         return cls(**params)
     except (TypeError, ValueError) as exc:
         raise InputError(f"bad parameters for model {name!r}: {exc}") from None
+    except PfbenchError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the model's constructor (a user's code): one line
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise InputError(f"model {name!r}: __init__ raised {type(exc).__name__}: {first}") from exc
 
 
 def parse_spec(spec: str, params: dict | None = None) -> tuple[str, dict]:

@@ -86,9 +86,19 @@ def _check_static(model, needs) -> set:
     return have
 
 
+def _check_dimensions(model) -> None:
+    """n_x, n_y (at least 1), n_noise, n_u and n_obs_noise (unless None) are integers >= 0."""
+    for attr, least in (("n_x", 1), ("n_y", 1), ("n_noise", 0), ("n_u", 0), ("n_obs_noise", 0)):
+        v = getattr(model, attr, None)
+        if v is None and attr == "n_obs_noise":
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
+            raise InputError(f"model {name_of(model)!r}: {attr} must be an integer >= {least}, got {v!r}")
+
+
 def _probe_args(model, y, u) -> dict:
     """Arguments of each function on the probe block (zero noise, the first measurement)."""
-    p = model.params()
+    p = call(model, "params", {"params": "the run"})
     n = PROBE
     n_prop = getattr(model, "n_proposal_noise", None)
     return {"p": p, "n": n, "y0": np.asarray(y[0]), "u0": np.asarray(u[0]),
@@ -163,14 +173,17 @@ def returned(model, fn: str, out, names: tuple | None):
     return tuple(out)
 
 
-def _shape(model, fn: str, value, want: tuple) -> np.ndarray:
-    arr = np.asarray(value)
-    if arr.shape != want or not np.issubdtype(arr.dtype, np.number):
+def shaped(model, fn: str, value, want: tuple, step: int | None = None) -> np.ndarray:
+    """``value``, what the model's ``fn`` returned on the probe block (``step`` None) or at ``step``
+    of a run, as a float64 array of shape ``want``; an InputError naming the function otherwise."""
+    arr = np.asanyarray(value)   # any: the operation counter's arrays stay counting (pfbench.mcu.counting)
+    if arr.shape != want or arr.dtype.kind not in "fiu":
         got = f"shape {arr.shape} of {arr.dtype}" if arr.ndim or np.issubdtype(arr.dtype, np.number) \
             else type(value).__name__
+        where = f"on a block of {PROBE} particles" if step is None else f"at step {step}"
         raise InputError(f"model {name_of(model)!r}: {fn}() must return a float array of shape {want}, "
-                         f"got {got} (on a block of {PROBE} particles)")
-    return arr.astype(np.float64)
+                         f"got {got} ({where})")
+    return arr.astype(np.float64, copy=False)
 
 
 def check_model(model, y, u, needs: dict | None = None) -> None:
@@ -180,6 +193,7 @@ def check_model(model, y, u, needs: dict | None = None) -> None:
     ``{"log_likelihood": "method 'bootstrap'"}``): those must be defined; the others are checked
     where the model defines them (a model for the marginalized PF may have no log_likelihood)."""
     needs = needs or {}
+    _check_dimensions(model)
     have = _check_static(model, needs)
     a = _probe_args(model, y, u)
     n, n_x, n_y = a["n"], int(model.n_x), int(model.n_y)
@@ -188,12 +202,12 @@ def check_model(model, y, u, needs: dict | None = None) -> None:
     x = call(model, "initial", needs, np.random.default_rng(0), n, a["p"])
     if x is None:
         return
-    x = _shape(model, "initial", x, (n, n_x))
+    x = shaped(model, "initial", x, (n, n_x))
     for fn, want, args in _calls(a, x, (n, n_x), (n, n_y)):
         if fn in have and want is not None:
             out = call(model, fn, needs, *args)
             if out is not None:
-                _shape(model, fn, out, want)
+                shaped(model, fn, out, want)
 
 
 def needs_of(family: str, label: str) -> dict:
@@ -275,13 +289,19 @@ def compiled_model_code(model):
     raises (a ``raise`` in the model's code, a division by zero in it, or
     :data:`RESHAPED`) becomes a one-line InputError naming the model. Compiled code keeps no
     traceback, so the function and the step are named by the same run on ``--backend numpy``.
-    numba's own errors (a compile failure) and MemoryError pass unchanged."""
+    numba's own errors pass unchanged: a compile failure (:func:`named_model_errors` names it), and
+    an exception raised in numba's Python code (e.g. an unknown ``NUMBA_THREADING_LAYER`` when the
+    threads start), as does MemoryError."""
     try:
         yield
     except (PfbenchError, MemoryError):   # as in named_model_errors
         raise
     except Exception as exc:
-        if type(exc).__module__ != "builtins":
+        tb = exc.__traceback__
+        while tb is not None and tb.tb_next is not None:
+            tb = tb.tb_next
+        if type(exc).__module__ != "builtins" or (
+                tb is not None and tb.tb_frame.f_globals.get("__name__", "").startswith("numba")):
             raise
         if RESHAPED in str(exc):
             raise InputError(f"model {name_of(model)!r}: {exc}") from exc

@@ -115,6 +115,9 @@ def _do_run(kw: dict) -> None:
         raise InputError("give --model (or a --grid file); `pfbench sweep --help` lists the options")
     if not opts.get("out"):
         raise InputError("give --out STORE (e.g. results/sweeps/ob1.parquet)")
+    out = typed(opts["out"], str, "out")
+    # a grid's overwrite: 'no' is text, not false: refused rather than taken as true (a sweep thrown away)
+    overwrite, quiet = (typed(opts.get(k, False), bool, k) for k in ("overwrite", "quiet"))
     params = opts.get("params") or {}
     if not isinstance(params, dict):
         raise InputError("params (grid file) must be a mapping of model parameters")
@@ -134,13 +137,13 @@ def _do_run(kw: dict) -> None:
                      backend=str(opts.get("backend", "numba")), estimate=str(opts.get("estimate", "pre")))
     try:
         workers = opts.get("workers")
-        rep = run_sweep(spec, opts["out"], workers=None if workers is None else typed(workers, int, "--workers"),
+        rep = run_sweep(spec, out, workers=None if workers is None else typed(workers, int, "--workers"),
                         executor=opts.get("executor", "local"), scheduler=opts.get("scheduler"),
-                        progress=not opts.get("quiet"), overwrite=bool(opts.get("overwrite")))
+                        progress=not quiet, overwrite=overwrite)
     except KeyboardInterrupt:
         from .store import journal_path
 
-        click.echo(f"interrupted: finished tasks are saved in {journal_path(opts['out'])}; "
+        click.echo(f"interrupted: finished tasks are saved in {journal_path(out)}; "
                    "re-run the same command to resume", err=True)
         sys.exit(130)
     if as_json:

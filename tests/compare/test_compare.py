@@ -40,6 +40,9 @@ def files(tmp_path_factory):
             if model.n_x == 1:
                 raise RuntimeError("boom\\nsecond line")
             return {"estimates": np.zeros((3, 3))}          # malformed: wrong shape
+        def exits(model, y, u, *, n_particles, seed):
+            import sys
+            sys.exit(3)
     '''))
     (d / "garbage.py").write_text("import sys; sys.stdin.read(); print('not json')\n")
     (d / "slow.py").write_text("import sys, time; sys.stdin.read(); time.sleep(30)\n")
@@ -48,6 +51,19 @@ def files(tmp_path_factory):
 
 def _invoke(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def test_a_contender_that_calls_sys_exit_is_a_failed_run(files, tmp_path):
+    """sys.exit in a py: contender ended the whole comparison with its exit code and no output.
+    Catches SystemExit not taken as the contender's failure."""
+    out = tmp_path / "cmp"
+    res = _invoke("compare", "--task", "ob1", "--runs", 2, "--particles", 50, "--quiet", "--out", out,
+                  "--contender", "pfbench:bootstrap:backend=numpy",
+                  "--contender", f"quits=py:{files / 'broken.py'}:exits")
+    assert res.exit_code == 0, res.output
+    cs = json.loads((out / "compare.json").read_text())["tasks"]["ob1"]["contenders"]
+    assert cs["quits"]["failed"] == 2 and list(cs["quits"]["failures"]) == ["SystemExit: 3"]
+    assert cs["bootstrap-numpy"]["complete"]
 
 
 def test_readme_contenders_are_short():

@@ -205,6 +205,98 @@ def test_a_guided_proposal_that_raises_after_the_check_is_named():
         assert str(err.value).startswith(f"model 'lateproposal': {needle}"), err.value
 
 
+class LateRows(Good):
+    name = "laterows"
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        if t >= 3:
+            return np.zeros((x.shape[0] + 1, 1))  # a row more: stored by index, out of bounds
+        return 0.9 * x + noise
+
+
+class LateShortLoglik(Good):
+    name = "lateshort"
+
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        out = -0.5 * (y[0] - x[:, 0]) ** 2
+        return out[:-1] if t >= 3 else out        # a row fewer: read out of bounds
+
+
+@pytest.mark.parametrize("model, numpy_says, numba_says", [
+    (LateRows(), "transition() must return a float array of shape (8, 1), got shape (9, 1) of float64 (at step 3)",
+     "transition() returned an array of another shape during the run"),
+    (LateShortLoglik(), "log_likelihood() must return a float array of shape (8,), got shape (7,) of float64 "
+     "(at step 3)", "log_likelihood() returned an array of another shape during the run"),
+])
+def test_a_shape_that_changes_after_the_check_is_named(model, numpy_says, numba_says):
+    """The particle kernels read and store the model's rows by index: a changed shape was a
+    broadcast error (NumPy, reported as a pfbench bug) or memory read or written out of bounds, with
+    results that looked normal (numba). Catches either per-step check dropped."""
+    for backend, says in (("numpy", numpy_says), ("numba", numba_says)):
+        with pytest.raises(InputError) as err:
+            pfbench.run_filter(model, np.zeros((6, 1)), n_particles=8, backend=backend)
+        assert str(err.value).startswith(f"model {model.name!r}: {says}"), (backend, err.value)
+
+
+class HalfState(Good):
+    name = "halfstate"
+    n_x = 1.5
+
+
+class SqrtParams(Good):
+    name = "sqrtparams"
+
+    def __init__(self, q=None):
+        self.q = q
+
+    def params(self):
+        return (np.sqrt(self.q),)
+
+
+class FailingInit(Good):
+    name = "failinginit_test"
+
+    def __init__(self):
+        raise RuntimeError("no licence file")
+
+
+def test_a_models_dimensions_parameters_and_constructor_are_its_own_errors(monkeypatch):
+    """Each was a TypeError or RuntimeError the CLI reported as a pfbench bug. Catches the
+    dimension check, params() outside the contract's call, get() passing a constructor's
+    exception on."""
+    from pfbench import models
+
+    with pytest.raises(InputError, match=r"^model 'halfstate': n_x must be an integer >= 1, got 1.5$"):
+        pfbench.run_filter(HalfState(), Y, n_particles=10, backend="numpy")
+    with pytest.raises(InputError, match=r"^model 'sqrtparams': params\(\) raised TypeError"):
+        pfbench.run_filter(SqrtParams(q="abc"), Y, n_particles=10, backend="numpy")
+    monkeypatch.setitem(models._REGISTRY, "failinginit_test", FailingInit)   # registered for this test only
+    with pytest.raises(InputError, match=r"^model 'failinginit_test': __init__ raised RuntimeError: no licence file$"):
+        models.get("failinginit_test")
+
+
+def test_only_an_exception_of_compiled_code_is_blamed_on_the_model():
+    """An exception numba's own Python code raises around a kernel call (here: a thread count it
+    refuses; in the field an unknown NUMBA_THREADING_LAYER) is numba's, not the model's. Catches
+    every builtin exception inside the kernel call blamed on the model's compiled code."""
+    import numba
+
+    from pfbench.models.contract import compiled_model_code
+
+    @numba.njit(cache=False)
+    def kernel():
+        raise ValueError("from compiled code")
+
+    with pytest.raises(InputError, match=r"^model 'good': its compiled code raised ValueError: from compiled code"):
+        with compiled_model_code(Good()):
+            kernel()
+    with pytest.raises(ValueError, match="number of threads"):
+        with compiled_model_code(Good()):
+            numba.set_num_threads(0)
+
+
 def test_a_pfbench_error_during_the_run_is_not_blamed_on_the_model(monkeypatch):
     """An exception with no frame of the model's functions passes unchanged (the CLI then reports
     a pfbench bug). Catches every exception during a run turned into the model's InputError."""
