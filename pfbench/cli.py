@@ -34,7 +34,7 @@ from pathlib import Path
 import click
 
 from .clitypes import OUT_DIR, OUT_FILE, ChoiceList, complete_models, complete_papers, complete_recipes
-from .errors import PfbenchError
+from .errors import InputError, PfbenchError
 from .methods import BACKENDS, DTYPES, ESTIMATES, METHODS
 from .options import parse_key_values
 from .resampling import SCHEMES
@@ -181,6 +181,7 @@ def main(model_files):
       pfbench info                      # CPU, cores, numba threading layer, versions
       pfbench --models my_model.py mcu emulate --model my_growth
     """
+    _check_numba_environment()
     if model_files:
         from . import models
 
@@ -189,6 +190,24 @@ def main(model_files):
         os.environ[models.MODELS_ENV] = os.pathsep.join(
             [os.path.abspath(f) for f in model_files]
             + [p for p in os.environ.get(models.MODELS_ENV, "").split(os.pathsep) if p])
+
+
+#: the values numba takes for NUMBA_THREADING_LAYER (a layer, or a rule for choosing one)
+NUMBA_LAYERS = ("default", "safe", "threadsafe", "forksafe", "tbb", "omp", "workqueue")
+
+
+def _check_numba_environment() -> None:
+    """numba's settings from the environment, checked before numba reads them: NUMBA_NUM_THREADS=0
+    made numba's import fail (a traceback read as a pfbench bug), an unknown threading layer failed
+    only when the threads started, and junk was a warning with a traceback."""
+    threads = os.environ.get("NUMBA_NUM_THREADS")
+    if threads is not None and not (threads.strip().isdigit() and int(threads) > 0):
+        raise InputError(f"NUMBA_NUM_THREADS={threads!r}: numba needs a positive integer (unset it to use "
+                         "every core; pfbench run --threads limits one run)")
+    layer = os.environ.get("NUMBA_THREADING_LAYER")
+    if layer is not None and layer.strip().lower() not in NUMBA_LAYERS:
+        raise InputError(f"NUMBA_THREADING_LAYER={layer!r}: numba knows {', '.join(NUMBA_LAYERS)} "
+                         "(unset it for the default)")
 
 
 # --------------------------------------------------------------------------- run

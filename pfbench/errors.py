@@ -7,7 +7,8 @@ with code 2. Any other exception is a bug in pfbench: the CLI shows its tracebac
 
     PfbenchError
     ├── InputError (also a ValueError)   a bad argument, option, name or shape
-    │   └── DataError                    an unusable data file, log or store
+    │   ├── DataError                    an unusable data file, log or store
+    │   └── ModelError                   a mistake in a model's code (its contract)
     ├── UnsupportedError                 the model lacks what the method needs
     └── NumericalError                   numerical trouble that cannot be recovered from
 """
@@ -25,6 +26,11 @@ class DataError(InputError):
     """A data file, log, journal or cache entry that cannot be used as it is."""
 
 
+class ModelError(InputError):
+    """A mistake in a model's code, found by its contract (:mod:`pfbench.models.contract`): a
+    function that raises, returns the wrong shape or type, or that numba cannot compile."""
+
+
 class UnsupportedError(PfbenchError):
     """The model does not declare what the method needs (e.g. no linear-Gaussian substructure)."""
 
@@ -34,4 +40,4 @@ class NumericalError(PfbenchError):
     stabilising solution)."""
 
 
-__all__ = ["PfbenchError", "InputError", "DataError", "UnsupportedError", "NumericalError"]
+__all__ = ["PfbenchError", "InputError", "DataError", "ModelError", "UnsupportedError", "NumericalError"]

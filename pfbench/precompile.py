@@ -63,11 +63,12 @@ def compile_target(target: Target) -> dict:
     Returns ``asdict(target)`` plus ``status`` (``"ready"``; ``"not applicable"`` when the model
     does not support the method or the dtype: the run's :class:`~pfbench.errors.UnsupportedError`,
     or its :class:`~pfbench.errors.InputError` refusing the combination; ``"failed"`` on any other
-    :class:`~pfbench.errors.PfbenchError`, such as a :class:`~pfbench.errors.DataError` for a
-    cache directory that cannot be written), ``detail`` (the error's one line) and ``seconds``.
+    :class:`~pfbench.errors.PfbenchError`, such as a :class:`~pfbench.errors.ModelError` (a mistake in
+    the model's code) or a :class:`~pfbench.errors.DataError` for a cache directory that cannot be
+    written), ``detail`` (the error's one line) and ``seconds``.
     """
     from . import models
-    from .errors import DataError, InputError, PfbenchError, UnsupportedError
+    from .errors import DataError, InputError, ModelError, PfbenchError, UnsupportedError
     from .filters import run_filter
 
     row = asdict(target)
@@ -84,7 +85,7 @@ def compile_target(target: Target) -> dict:
                    _block=2 if target.all_threads else None)
         row.update(status="ready", detail=None)
     except PfbenchError as exc:
-        refused = isinstance(exc, (UnsupportedError, InputError)) and not isinstance(exc, DataError)
+        refused = isinstance(exc, (UnsupportedError, InputError)) and not isinstance(exc, (DataError, ModelError))
         row.update(status="not applicable" if refused else "failed", detail=" ".join(str(exc).split()))
     row["seconds"] = time.perf_counter() - t0
     return row

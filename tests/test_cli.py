@@ -63,6 +63,19 @@ def test_bad_input_is_one_line_exit_2(args, needle):
     assert needle in _one_error_line(r.stderr)
 
 
+@pytest.mark.parametrize("env, needle", [({"NUMBA_NUM_THREADS": "0"}, "NUMBA_NUM_THREADS='0': numba needs a positive"),
+                                         ({"NUMBA_NUM_THREADS": "abc"}, "NUMBA_NUM_THREADS='abc'"),
+                                         ({"NUMBA_THREADING_LAYER": "foo"}, "NUMBA_THREADING_LAYER='foo': numba knows")])
+def test_numba_settings_in_the_environment_are_checked_first(env, needle):
+    """In a real process, where numba reads them at its import: 0 was numba's own traceback at import
+    (reported as a pfbench bug), an unknown layer failed only when threads started, blamed on the
+    model. Catches the check dropped or run after numba's import."""
+    r = subprocess.run([sys.executable, "-m", "pfbench.cli", "run", "--model", "ob1", "--particles", "20000",
+                        "--steps", "3", "--threads", "2"], capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, **env))
+    assert r.returncode == 2 and needle in _one_error_line(r.stderr), r.stderr
+
+
 def test_user_error_one_line_in_a_real_process():
     r = _cli("run", "--model", "nope")
     assert r.returncode == 2 and "unknown model" in _one_error_line(r.stderr)

@@ -182,8 +182,8 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             first = 0.0
             if method == Method.ASIR:  # first stage
                 mu = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p),
-                            (n, n_x), t)
-                lam_all = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), (n,), t))
+                            (n, n_x), f"at step {t}")
+                lam_all = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), (n,), f"at step {t}"))
                 wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
                 if deg1:
@@ -196,9 +196,9 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             noise = np.concatenate([r.standard_normal((sl.stop - sl.start, n_noise), dtype=ptype)
                                     for r, sl in zip(brngs, blocks)])
             xg[:] = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p),
-                           (n, n_x), t)   # the check before the run saw step 0 only
+                           (n, n_x), f"at step {t}")   # the check before the run saw step 0 only
             ll = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut,
-                                                                                 t, p), (n,), t))
+                                                                                 t, p), (n,), f"at step {t}"))
             if method == Method.ASIR:
                 ll = valid_log_likelihood(ll - lam)
             wu, cdf, m, total, deg = weigh(lw[g], ll, blocks)

@@ -169,10 +169,26 @@ class PfbenchContender(Contender):
         self.method = Method.parse(method).label
         check_known(options, PFBENCH_KEYS, "a pfbench: contender option", flag=f"--contender {spec}:")
         self.options = {k: typed(v, PFBENCH_KEYS[k], f"--contender {spec}: {k}") for k, v in options.items()}
-        if "backend" in self.options:
-            from ..methods import check_backend
+        self._check(spec)
 
-            check_backend(self.options["backend"])
+    def _check(self, spec: str) -> None:
+        """The options' values, refused up front as `pfbench run` refuses them (not as a failure of
+        every run)."""
+        from ..methods import check_backend, check_dtype
+        from ..resampling import Scheme
+
+        o = self.options
+        try:
+            for key, check in (("backend", check_backend), ("dtype", check_dtype), ("resampling", Scheme.parse)):
+                if key in o:
+                    check(o[key])
+        except InputError as exc:
+            raise InputError(f"--contender {spec}: {exc}") from None
+        for key in ("filters", "threads"):
+            if o.get(key, 1) < 1:
+                raise InputError(f"--contender {spec}: {key} must be >= 1, got {o[key]}")
+        if not 0.0 < o.get("ess_threshold", 0.5) <= 1.0:
+            raise InputError(f"--contender {spec}: ess_threshold must be a fraction in (0, 1], got {o['ess_threshold']}")
 
     def _kw(self):
         o = self.options

@@ -59,7 +59,7 @@ import numpy as np
 from .. import resampling as _resampling
 from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
-from ..errors import InputError, UnsupportedError
+from ..errors import InputError, ModelError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
 from ..models.contract import PROBE, call, call_returning, linear_indices, name_of, returned
 from ..resampling import Scheme
@@ -369,7 +369,7 @@ def structure_check(model, n: int, d_n: int, d_l: int, n_y: int):
             a = np.asarray(arr)
             if a.shape != shape:
                 at = f"at step {step}" if step is not None else "in the check before the run"
-                raise InputError(f"model {name_of(model)!r}: {fn}(){f' ({label})' if label else ''} returned "
+                raise ModelError(f"model {name_of(model)!r}: {fn}(){f' ({label})' if label else ''} returned "
                                  f"an array of shape {a.shape} {at}, expected {shape} (n = {n} particles, "
                                  f"d_n = {d_n}, d_l = {d_l}, n_y = {n_y})")
         return arrays
@@ -386,7 +386,7 @@ def _check_shapes(model, u, idx_n, d_l, m0) -> None:
     if d_n:
         x = np.asarray(call(model, "initial", _NEEDED, np.random.default_rng(0), n, p))
         if x.shape != (n, int(model.n_x)):
-            raise InputError(f"model {name_of(model)!r}: initial() returned an array of shape {x.shape}, "
+            raise ModelError(f"model {name_of(model)!r}: initial() returned an array of shape {x.shape}, "
                              f"expected {(n, int(model.n_x))}")
         xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
     check("cl_transition", call(model, "cl_transition", _NEEDED, xn, u[0], 0, p))

@@ -31,7 +31,7 @@ import pkgutil
 import sys
 from pathlib import Path
 
-from ..errors import InputError, PfbenchError
+from ..errors import InputError, ModelError, PfbenchError
 from ..options import check_known, typed
 from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 
@@ -54,7 +54,12 @@ def register(name: str):
     """Class decorator: register a :class:`StateSpaceModel` subclass under ``name``.
 
     While a user model file is imported (:func:`load_files`), a name already registered by a
-    built-in or another file is an InputError naming both files."""
+    built-in or another file is an InputError naming both files, as is ``@register`` without a name
+    (which would otherwise register nothing and replace the class by the decorator)."""
+    if not isinstance(name, str) or not name.strip():
+        what = f"class {name.__name__}" if isinstance(name, type) else repr(name)
+        raise InputError(f"@register needs the model's name as text: write @register(\"my_model\") above "
+                         f"the class, got {what}")
 
     def deco(cls):
         if not (isinstance(cls, type) and issubclass(cls, StateSpaceModel)):
@@ -117,8 +122,12 @@ def load_files(paths) -> list[str]:
                              f"{type(exc).__name__}: {first}") from None
         finally:
             _IMPORTING.pop()
+        new = sorted(set(_REGISTRY) - set(before))
+        if not new:   # not kept in _FILES: worker processes load those files too
+            raise InputError(f"model file {str(raw)!r} registers no model: decorate a StateSpaceModel subclass "
+                             "with @register(\"my_model\") (see `pfbench.models.base`)")
         _FILES[key] = name
-        added += sorted(set(_REGISTRY) - set(before))
+        added += new
     return added
 
 
@@ -233,7 +242,7 @@ def get(name: str, **params) -> StateSpaceModel:
         raise
     except Exception as exc:  # noqa: BLE001 - the model's constructor (a user's code): one line
         first = (str(exc).strip().splitlines() or [""])[0]
-        raise InputError(f"model {name!r}: __init__ raised {type(exc).__name__}: {first}") from exc
+        raise ModelError(f"model {name!r}: __init__ raised {type(exc).__name__}: {first}") from exc
 
 
 def parse_spec(spec: str, params: dict | None = None) -> tuple[str, dict]:

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba.extending import register_jitable
 
-from ..errors import InputError
+from ..errors import InputError, ModelError
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -251,24 +251,26 @@ class StateSpaceModel:
             raise InputError("n_steps must be >= 1")
         n_steps = int(n_steps)
         rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-        p = self.params()
         u = self.inputs(rng, n_steps)
         u_arr = self.input_array(u, n_steps)
-        from .contract import check_model, named_model_errors   # a mistake reads as one line
+        from .contract import check_model, named_model_errors, shaped   # a mistake reads as one line
 
         check_model(self, np.zeros((1, self.n_y)), u_arr[:1],
                     {fn: "simulate()" for fn in ("initial", "transition", "observe")})
-        with named_model_errors(self, None, None, "numpy"):   # and one raised at a later step too
-            x = np.asarray(self.initial(rng, 1, p), dtype=np.float64).reshape(1, self.n_x)
+        p = self.params()
+        n_x, n_y = self.n_x, self.n_y
+        with named_model_errors(self, None, None, "numpy"):   # and at a later step too
+            x = shaped(self, "initial", self.initial(rng, 1, p), (1, n_x), "for one particle")
             x0 = x[0].copy()
-            xs = np.empty((n_steps, self.n_x))
-            ys = np.empty((n_steps, self.n_y))
+            xs = np.empty((n_steps, n_x))
+            ys = np.empty((n_steps, n_y))
             for t in range(n_steps):
                 v = rng.standard_normal((1, self.n_noise))
-                x = np.asarray(self.transition(x, u_arr[t], t, v, p), dtype=np.float64).reshape(1, self.n_x)
+                x = shaped(self, "transition", self.transition(x, u_arr[t], t, v, p), (1, n_x), f"at step {t}")
                 n = rng.standard_normal((1, self.obs_noise_dim))
-                ys[t] = np.asarray(self.observe(x, u_arr[t], t, n, p)).reshape(self.n_y)
+                ys[t] = shaped(self, "observe", self.observe(x, u_arr[t], t, n, p), (1, n_y), f"at step {t}")[0]
                 xs[t] = x[0]
+        _check_simulated(self, x0, xs, ys)
         return Trajectory(x=xs, y=ys, u=u, x0=x0)
 
     def input_array(self, u, n_steps: int) -> np.ndarray:
@@ -341,3 +343,22 @@ def gaussian_loglik_diag(resid, var):
         r = resid[:, j]
         out += -0.5 * r * r / var[j] - 0.5 * (LOG_2PI + np.log(var[j]))
     return out
+
+
+def _check_simulated(model, x0, xs, ys) -> None:
+    """A simulation with a NaN or infinite state or measurement is the model's error, named here
+    (a filter run would otherwise refuse the measurements as if they were a user's bad data)."""
+    from .contract import name_of
+
+    if not np.isfinite(x0).all():
+        what, value = "initial() drew a non-finite state", x0
+    else:
+        steps = [(int(np.flatnonzero(~np.isfinite(a).all(axis=1))[0]), i) for i, a in enumerate((xs, ys))
+                 if not np.isfinite(a).all()]
+        if not steps:
+            return
+        t, i = min(steps)
+        what = f"{('transition()', 'observe()')[i]} gave a non-finite {('state', 'measurement')[i]} at step {t}"
+        value = (xs, ys)[i][t]
+    raise ModelError(f"model {name_of(model)!r}: simulate(): {what} ({value.tolist()}); "
+                     "check the model and its parameters")

@@ -39,7 +39,7 @@ import inspect
 
 import numpy as np
 
-from ..errors import InputError, PfbenchError
+from ..errors import ModelError, PfbenchError
 
 FUNCTIONS = ("initial", "transition", "log_likelihood", "observe", "proposal", "proposal_log_weight",
              "predictive_log_likelihood", "cl_transition", "cl_observation", "cl_constrain")
@@ -77,11 +77,11 @@ def _check_static(model, needs) -> set:
     for fn in FUNCTIONS:
         if fn not in have:
             if fn in needs:
-                raise InputError(f"model {name_of(model)!r} defines no {fn}(), which {needs[fn]} needs "
+                raise ModelError(f"model {name_of(model)!r} defines no {fn}(), which {needs[fn]} needs "
                                  "(see `pfbench.models.base`)")
             continue
         if not isinstance(inspect.getattr_static(type(model), fn), staticmethod):
-            raise InputError(f"model {name_of(model)!r}: {fn} must be a @staticmethod (it takes no self; "
+            raise ModelError(f"model {name_of(model)!r}: {fn} must be a @staticmethod (it takes no self; "
                              "put @staticmethod above its def)")
     return have
 
@@ -93,7 +93,7 @@ def _check_dimensions(model) -> None:
         if v is None and attr == "n_obs_noise":
             continue
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
-            raise InputError(f"model {name_of(model)!r}: {attr} must be an integer >= {least}, got {v!r}")
+            raise ModelError(f"model {name_of(model)!r}: {attr} must be an integer >= {least}, got {v!r}")
 
 
 def _probe_args(model, y, u) -> dict:
@@ -109,12 +109,12 @@ def _probe_args(model, y, u) -> dict:
 
 def linear_indices(model) -> np.ndarray:
     """The model's ``linear_states`` as distinct int64 indices of x^l in 0..n_x-1, at least one;
-    else an InputError."""
+    else an ModelError."""
     raw = np.asarray(model.linear_states)
     n_x = int(model.n_x)
     if (raw.ndim != 1 or raw.size == 0 or raw.dtype.kind not in "iu" or len(set(raw.tolist())) != raw.size
             or raw.min() < 0 or raw.max() >= n_x):
-        raise InputError(f"model {name_of(model)!r}: linear_states must be a sequence of distinct state "
+        raise ModelError(f"model {name_of(model)!r}: linear_states must be a sequence of distinct state "
                          f"indices in 0..{n_x - 1} (integers), at least one, got {model.linear_states!r}")
     return raw.astype(np.int64)
 
@@ -150,10 +150,10 @@ def call(model, fn: str, needs: dict, *args):
 
 
 def _raised(model, what: str, exc: BaseException, step=None, how: str = "pfbench --debug shows the traceback"):
-    """The one-line InputError for an exception ``exc`` of ``what`` (the model's function, at ``step``)."""
+    """The one-line ModelError for an exception ``exc`` of ``what`` (the model's function, at ``step``)."""
     first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
     at = f" at step {step}" if step is not None else ""
-    return InputError(f"model {name_of(model)!r}: {what} raised {type(exc).__name__}{at}"
+    return ModelError(f"model {name_of(model)!r}: {what} raised {type(exc).__name__}{at}"
                       + (f": {first}" if first else "") + f" ({how})")
 
 
@@ -164,30 +164,29 @@ def call_returning(model, fn: str, names: tuple | None, *args):
 
 def returned(model, fn: str, out, names: tuple | None):
     """``out``, what the model's ``fn`` returned, as a tuple of one result per name of ``names``
-    (None: ``out``, any one value); an InputError when it is not a tuple or list of that length."""
+    (None: ``out``, any one value); an ModelError when it is not a tuple or list of that length."""
     if names is None:
         return out
     if not isinstance(out, (tuple, list)) or len(out) != len(names):
         got = f"{len(out)} values" if isinstance(out, (tuple, list)) else type(out).__name__
-        raise InputError(f"model {name_of(model)!r}: {fn}() must return ({', '.join(names)}), got {got}")
+        raise ModelError(f"model {name_of(model)!r}: {fn}() must return ({', '.join(names)}), got {got}")
     return tuple(out)
 
 
-def shaped(model, fn: str, value, want: tuple, step: int | None = None) -> np.ndarray:
-    """``value``, what the model's ``fn`` returned on the probe block (``step`` None) or at ``step``
-    of a run, as a float64 array of shape ``want``; an InputError naming the function otherwise."""
+def shaped(model, fn: str, value, want: tuple, where: str | None = None) -> np.ndarray:
+    """``value``, what the model's ``fn`` returned on the probe block (``where`` None) or ``where``
+    else (e.g. "at step 3"), as a float64 array of shape ``want``; an ModelError naming it otherwise."""
     arr = np.asanyarray(value)   # any: the operation counter's arrays stay counting (pfbench.mcu.counting)
     if arr.shape != want or arr.dtype.kind not in "fiu":
         got = f"shape {arr.shape} of {arr.dtype}" if arr.ndim or np.issubdtype(arr.dtype, np.number) \
             else type(value).__name__
-        where = f"on a block of {PROBE} particles" if step is None else f"at step {step}"
-        raise InputError(f"model {name_of(model)!r}: {fn}() must return a float array of shape {want}, "
-                         f"got {got} ({where})")
+        raise ModelError(f"model {name_of(model)!r}: {fn}() must return a float array of shape {want}, "
+                         f"got {got} ({where or f'on a block of {PROBE} particles'})")
     return arr.astype(np.float64, copy=False)
 
 
 def check_model(model, y, u, needs: dict | None = None) -> None:
-    """Check the model's contract on a probe block (module docstring); an InputError naming the
+    """Check the model's contract on a probe block (module docstring); an ModelError naming the
     model, the function and the problem otherwise. ``y``, ``u``: the run's checked inputs
     (:func:`pfbench.filters.inputs.check_inputs`). ``needs``: function -> what needs it (e.g.
     ``{"log_likelihood": "method 'bootstrap'"}``): those must be defined; the others are checked
@@ -219,9 +218,9 @@ def needs_of(family: str, label: str) -> dict:
     if family == "guided":   # the proposal and its weight may stand in for transition and log_likelihood
         return {"initial": f"method {label!r}"}
     return {}
-def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
+def numba_failure(model, y, u, exc: BaseException) -> ModelError | None:
     """After numba failed to compile a kernel for ``model`` (``exc``): compile each model function
-    alone on the probe's arguments and return an InputError naming the first that numba cannot
+    alone on the probe's arguments and return an ModelError naming the first that numba cannot
     compile, with numba's first line; None when each compiles alone (then the failure is not the
     model's, and the caller re-raises it)."""
     import numba
@@ -237,12 +236,12 @@ def numba_failure(model, y, u, exc: BaseException) -> InputError | None:
         except Exception as err:   # numba's typing / bytecode errors, or the model's own raise
             lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
             why = next((ln for ln in lines if not ln.startswith(("During:", "File", "^"))), type(err).__name__)
-            return InputError(f"model {name_of(model)!r}: numba cannot compile {fn}(): {why} "
+            return ModelError(f"model {name_of(model)!r}: numba cannot compile {fn}(): {why} "
                               "(--backend numpy runs plain Python; pfbench --debug shows numba's report)")
     return None
 
 
-def _raised_in_model(model, exc: BaseException) -> InputError | None:
+def _raised_in_model(model, exc: BaseException) -> ModelError | None:
     """:func:`_raised` for an exception raised inside one of the model's functions during the run
     (found in its traceback, with the step from that function's ``t`` argument); None when no
     frame of the traceback is the model's, or the exception is in compiled code (no frames)."""
@@ -266,7 +265,7 @@ def _raised_in_model(model, exc: BaseException) -> InputError | None:
 
 @contextlib.contextmanager
 def named_model_errors(model, y, u, backend: str):
-    """Around a run: an exception raised in the model's own code becomes a one-line InputError
+    """Around a run: an exception raised in the model's own code becomes a one-line ModelError
     naming the function and the step (:func:`_raised_in_model`); a numba compile failure caused by
     the model's code becomes :func:`numba_failure`'s. Other exceptions pass unchanged."""
     try:
@@ -287,7 +286,7 @@ def named_model_errors(model, y, u, backend: str):
 def compiled_model_code(model):
     """Around a call of a compiled kernel that runs the model's functions: an exception the kernel
     raises (a ``raise`` in the model's code, a division by zero in it, or
-    :data:`RESHAPED`) becomes a one-line InputError naming the model. Compiled code keeps no
+    :data:`RESHAPED`) becomes a one-line ModelError naming the model. Compiled code keeps no
     traceback, so the function and the step are named by the same run on ``--backend numpy``.
     numba's own errors pass unchanged: a compile failure (:func:`named_model_errors` names it), and
     an exception raised in numba's Python code (e.g. an unknown ``NUMBA_THREADING_LAYER`` when the
@@ -304,6 +303,6 @@ def compiled_model_code(model):
                 tb is not None and tb.tb_frame.f_globals.get("__name__", "").startswith("numba")):
             raise
         if RESHAPED in str(exc):
-            raise InputError(f"model {name_of(model)!r}: {exc}") from exc
+            raise ModelError(f"model {name_of(model)!r}: {exc}") from exc
         raise _raised(model, "its compiled code", exc, how="compiled code keeps no traceback: the same "
                       "run with --backend numpy names the function and the step") from exc

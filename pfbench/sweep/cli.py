@@ -146,12 +146,17 @@ def _do_run(kw: dict) -> None:
         click.echo(f"interrupted: finished tasks are saved in {journal_path(out)}; "
                    "re-run the same command to resume", err=True)
         sys.exit(130)
+    if rep.non_finite_loglik:
+        click.echo(f"warning: {rep.non_finite_loglik} of {rep.done_before + rep.done_now} tasks have a log-likelihood "
+                   "of -inf or NaN: at some step every particle's likelihood was zero, NaN or infinite (check the "
+                   "model's log_likelihood and transition); their aRMSE is kept", err=True)
     if as_json:
         from ..io import to_json
 
         click.echo(to_json({"store": str(rep.store), "total": rep.total, "done": rep.done_before + rep.done_now,
                             "done_now": rep.done_now, "wall_s": rep.wall_s,
-                            "tasks_per_s": rep.tasks_per_s if rep.done_now else None}))
+                            "tasks_per_s": rep.tasks_per_s if rep.done_now else None,
+                            "non_finite_loglik": rep.non_finite_loglik}))
         return
     click.echo(f"{rep.done_before + rep.done_now}/{rep.total} tasks in {rep.store} "
                f"({rep.done_now} new in {rep.wall_s:.1f} s, {rep.tasks_per_s:.1f} tasks/s)")

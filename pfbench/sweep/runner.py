@@ -65,6 +65,9 @@ class SweepReport:
     done_before: int
     done_now: int
     wall_s: float
+    #: finished tasks whose log-likelihood is -inf or NaN (every particle's likelihood was zero,
+    #: NaN or infinite at some step): the model's trouble, said as ``pfbench run`` says it
+    non_finite_loglik: int = 0
 
     @property
     def tasks_per_s(self) -> float:
@@ -356,7 +359,9 @@ def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, ma
             export_parquet(store, out)
         except OSError as exc:
             raise path_error(exc, out, "--out") from None
-    return SweepReport(Path(out), total, before, len(store.records) - before, wall)
+    bad = sum(1 for r in store.records.values()   # read back from a journal, -inf is null and a note
+              if "loglik_nonfinite" in r or not math.isfinite(r.get("loglik") or 0.0))
+    return SweepReport(Path(out), total, before, len(store.records) - before, wall, bad)
 
 
 _WARM: set = set()

@@ -209,6 +209,19 @@ def test_spec_parsing():
         C.parse("pfbench:multipdf:filters=2.5")
 
 
+
+@pytest.mark.parametrize("spec, says", [("pfbench:bootstrap:resampling=sys", "unknown resampling scheme 'sys'"),
+                                        ("pfbench:bootstrap:threads=0", "threads must be >= 1"),
+                                        ("pfbench:multipdf:filters=0", "filters must be >= 1"),
+                                        ("pfbench:sir:ess_threshold=1.5", "ess_threshold must be a fraction"),
+                                        ("pfbench:bootstrap:dtype=float16", "unknown dtype 'float16'")])
+def test_a_pfbench_contenders_values_are_refused_up_front(spec, says):
+    """They were accepted, and every run then failed with the same error (threads=0 even ran, as a
+    contender named bootstrap-0). Catches any of the checks dropped."""
+    with pytest.raises(InputError, match=rf"^--contender {re.escape(spec)}: {re.escape(says)}"):
+        C.parse(spec)
+
+
 def test_normalise_rejects_malformed():
     with pytest.raises(C.RunFailed, match="no 'estimates'"):
         C.normalise({"loglik": 1.0}, 3, 1, 0.0)

@@ -5,6 +5,7 @@ a cold cache, loaded from disk afterwards. Everything else runs on the NumPy bac
 """
 import numpy as np
 import pytest
+from numba.extending import register_jitable
 from scipy.stats import f as f_dist
 
 import pfbench
@@ -14,6 +15,37 @@ from pfbench.kalman import kalman_filter
 from pfbench.metrics import armse
 from pfbench.models import StateSpaceModel, get
 from pfbench.models.base import gaussian_loglik_diag
+
+
+@register_jitable
+def _mixed_transition(xn, rows_al):
+    """Mixed's f^n, A^n, f^l, A^l; A^l with ``rows_al`` rows (2; 1 is a wrong shape)."""
+    n = xn.shape[0]
+    An = np.zeros((n, 1, 2))
+    An[:, 0, 0] = 0.5
+    fl = np.zeros((n, 2))
+    fl[:, 0] = 0.1 * np.sin(xn[:, 0])
+    Al = np.zeros((n, rows_al, 2))
+    Al[:, 0, 0] = 0.9
+    Al[:, 0, 1] = 0.2
+    if rows_al == 2:
+        Al[:, 1, 0] = -0.2
+        Al[:, 1, 1] = 0.9
+    return np.arctan(xn), An, fl, Al
+
+
+@register_jitable
+def _mixed_observation(xn, xl, cols_c):
+    """Mixed's h and C; C with ``cols_c`` columns (2; 1 is a wrong shape)."""
+    n = xn.shape[0]
+    h = np.empty((n, 2))
+    h[:, 0] = xn[:, 0] ** 2 / 5
+    h[:, 1] = xl[:, 0] + np.cos(xn[:, 0]) * xl[:, 1]
+    C = np.zeros((n, 2, cols_c))
+    C[:, 1, 0] = 1.0
+    if cols_c == 2:
+        C[:, 1, 1] = np.cos(xn[:, 0])
+    return h, C
 
 
 class Mixed(StateSpaceModel):
@@ -63,28 +95,11 @@ class Mixed(StateSpaceModel):
 
     @staticmethod
     def cl_transition(xn, u, t, p):
-        n = xn.shape[0]
-        An = np.zeros((n, 1, 2))
-        An[:, 0, 0] = 0.5
-        fl = np.zeros((n, 2))
-        fl[:, 0] = 0.1 * np.sin(xn[:, 0])
-        Al = np.zeros((n, 2, 2))
-        Al[:, 0, 0] = 0.9
-        Al[:, 0, 1] = 0.2
-        Al[:, 1, 0] = -0.2
-        Al[:, 1, 1] = 0.9
-        return np.arctan(xn), An, fl, Al
+        return _mixed_transition(xn, 2)
 
     @staticmethod
     def cl_observation(xn, xl, u, t, p):
-        n = xn.shape[0]
-        h = np.empty((n, 2))
-        h[:, 0] = xn[:, 0] ** 2 / 5
-        h[:, 1] = xl[:, 0] + np.cos(xn[:, 0]) * xl[:, 1]
-        C = np.zeros((n, 2, 2))
-        C[:, 1, 0] = 1.0
-        C[:, 1, 1] = np.cos(xn[:, 0])
-        return h, C
+        return _mixed_observation(xn, xl, 2)
 
     @staticmethod
     def cl_constrain(xn, p):
@@ -349,30 +364,11 @@ class _Late(Mixed):
     def cl_transition(xn, u, t, p):
         if p[2] == 1.0 and t >= 3:
             raise ValueError("late in the user's code")
-        n = xn.shape[0]
-        An = np.zeros((n, 1, 2))
-        An[:, 0, 0] = 0.5
-        fl = np.zeros((n, 2))
-        fl[:, 0] = 0.1 * np.sin(xn[:, 0])
-        Al = np.zeros((n, 1 if p[2] == 2.0 and t >= 3 else 2, 2))
-        Al[:, 0, 0] = 0.9
-        Al[:, 0, 1] = 0.2
-        if Al.shape[1] == 2:
-            Al[:, 1, 0] = -0.2
-            Al[:, 1, 1] = 0.9
-        return np.arctan(xn), An, fl, Al
+        return _mixed_transition(xn, 1 if p[2] == 2.0 and t >= 3 else 2)
 
     @staticmethod
     def cl_observation(xn, xl, u, t, p):
-        n = xn.shape[0]
-        h = np.empty((n, 2))
-        h[:, 0] = xn[:, 0] ** 2 / 5
-        h[:, 1] = xl[:, 0] + np.cos(xn[:, 0]) * xl[:, 1]
-        C = np.zeros((n, 2, 1 if p[2] == 3.0 and t >= 3 else 2))
-        C[:, 1, 0] = 1.0
-        if C.shape[2] == 2:
-            C[:, 1, 1] = np.cos(xn[:, 0])
-        return h, C
+        return _mixed_observation(xn, xl, 1 if p[2] == 3.0 and t >= 3 else 2)
 
 
 @pytest.mark.parametrize("mode, numpy_says, numba_says", [

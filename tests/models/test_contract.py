@@ -1,5 +1,7 @@
 """The model contract checked once before a run: a mistake in a user's model is one line naming
 the model and the function, the same on both backends."""
+import re
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -185,6 +187,33 @@ def test_simulate_names_a_function_that_raises_at_a_later_step():
     wrapped (a raw ValueError)."""
     with pytest.raises(InputError, match=r"^model 'lateraise': transition\(\) raised ValueError at step 3"):
         LateRaise().simulate(6)
+
+
+class NaNFromStep2(Good):
+    name = "nanstate"
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        return x + noise + (np.nan if t >= 2 else 0.0)
+
+
+class InfMeasurement(Good):
+    name = "infmeas"
+
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        return x + noise + (np.inf if t >= 4 else 0.0)
+
+
+@pytest.mark.parametrize("model, says", [
+    (NaNFromStep2(), "simulate(): transition() gave a non-finite state at step 2 ([nan])"),
+    (InfMeasurement(), "simulate(): observe() gave a non-finite measurement at step 4 ([inf])"),
+])
+def test_a_simulation_that_goes_non_finite_names_the_model(model, says):
+    """The run then refused the measurements as if they were the user's bad data. Catches the
+    check dropped, or the state and measurement steps confused."""
+    with pytest.raises(InputError, match=rf"^model {model.name!r}: {re.escape(says)}"):
+        model.simulate(6)
 
 
 def test_a_guided_proposal_that_raises_after_the_check_is_named():

@@ -29,7 +29,13 @@ def test_load_files_registers_the_readme_model(readme_model_file):
 @pytest.mark.parametrize("content,why", [(None, "not an existing .py file"),
                                          ("import no_such_module_xyz\n", "failed to import: ModuleNotFoundError"),
                                          # exit code 0 and nothing run, before
-                                         ("import sys\nsys.exit(0)\n", "failed to import: SystemExit: 0")])
+                                         ("import sys\nsys.exit(0)\n", "failed to import: SystemExit: 0"),
+                                         # both registered nothing, without a word
+                                         ("x = 1\n", "registers no model"),
+                                         ("from pfbench.models import register\n"
+                                          "from pfbench.models.base import StateSpaceModel\n"
+                                          "@register\nclass Mine(StateSpaceModel):\n    pass\n",
+                                          "@register needs the model's name as text")])
 def test_bad_model_file_is_one_line_input_error(tmp_path, content, why):
     path = tmp_path / "bad_model.py"
     if content is not None:

@@ -389,3 +389,40 @@ def test_a_remote_dask_worker_takes_its_share_of_the_host(tmp_path):
                   scheduler=cluster.scheduler_address, progress=False)
     chunks = Store.read(tmp_path / "r.jsonl").chunks
     assert chunks and {c["threads"] for c in chunks} == {max(1, usable_cores() // 4)}
+
+
+
+_LATE = """
+
+@register("sweep_late_raise")
+class LateRaise(MyGrowth):
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        if t >= 3:
+            raise RuntimeError("ll boom")
+        return MyGrowth.log_likelihood(y, x, u, t, p)
+
+@register("sweep_nan_ll")
+class NaNLoglik(MyGrowth):
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        return np.where(t >= 3, np.nan, MyGrowth.log_likelihood(y, x, u, t, p))
+"""
+
+
+def test_a_sweep_names_the_models_errors_and_warns_of_its_non_finite_likelihoods(readme_model_file):
+    """As `pfbench run` does: a model's exception at a later step was a traceback the CLI called a
+    pfbench bug, and -inf log-likelihoods passed without a word. Catches the sweep's particle runs
+    not wrapped, and the warning dropped."""
+    from pfbench.cli import main
+
+    f = readme_model_file("sweep_base")
+    f.write_text(f.read_text() + _LATE)
+    args = ["--models", str(f), "sweep", "--particles", "20", "--runs", "2", "--steps", "6", "--method",
+            "bootstrap", "--backend", "numpy", "--workers", "1", "--quiet"]
+    r = CliRunner().invoke(main, args + ["--model", "sweep_late_raise", "--out", str(f.with_name("a.parquet"))])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert "model 'sweep_late_raise': log_likelihood() raised RuntimeError at step 3: ll boom" in r.stderr
+    r = CliRunner().invoke(main, args + ["--model", "sweep_nan_ll", "--out", str(f.with_name("b.parquet"))])
+    assert r.exit_code == 0, r.output
+    assert "warning: 2 of 2 tasks have a log-likelihood of -inf or NaN" in r.stderr
