@@ -33,7 +33,8 @@ from pathlib import Path
 
 import click
 
-from .clitypes import OUT_DIR, OUT_FILE, ChoiceList, complete_models, complete_papers, complete_recipes
+from .clitypes import (OUT_DIR, OUT_FILE, ChoiceList, complete_models, complete_papers, complete_recipes,
+                       positive_int)
 from .errors import InputError, PfbenchError
 from .methods import BACKENDS, DTYPES, ESTIMATES, METHODS
 from .options import parse_key_values
@@ -145,14 +146,6 @@ class PfbenchGroup(click.Group):
         if isinstance(rv, int):
             sys.exit(rv)
         sys.exit(0)
-
-
-def positive_int(name: str):
-    def cb(ctx, param, value):
-        if value is not None and value < 1:
-            raise click.BadParameter(f"must be >= 1, got {value}", param_hint=f"'--{name}'")
-        return value
-    return cb
 
 
 def _set_debug(ctx, param, value):
@@ -578,6 +571,9 @@ def report(out_root, strict, as_json, compare):
     "Not reproduced / damaged" section. With --json the same data is printed and nothing is written."""
     from .report import Problem, check_results, compare_verdicts, report_data, write_report
 
+    if not Path(out_root).is_dir():   # a mistyped folder was created, with every recipe "not run"
+        raise InputError(f"cannot report on {out_root}: no such results folder (`pfbench reproduce --out "
+                         f"{out_root}` writes one)")
     if as_json:
         from .io import to_json
 

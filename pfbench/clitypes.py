@@ -8,6 +8,8 @@ folder. Completion is click's (README "Shell completion").
 """
 from __future__ import annotations
 
+import math
+
 import click
 from click.shell_completion import CompletionItem
 
@@ -41,6 +43,28 @@ class ChoiceList(click.ParamType):
 
     def shell_complete(self, ctx, param, incomplete):
         return _complete_from(self.choices, incomplete, many=True)
+
+
+def positive_int(name: str):
+    """A click callback: ``--name`` is None or an integer >= 1 (a usage error otherwise)."""
+    def cb(ctx, param, value):
+        if value is not None and value < 1:
+            raise click.BadParameter(f"must be >= 1, got {value}", param_hint=f"'--{name}'")
+        return value
+    return cb
+
+
+def positive_float(name: str, allow_zero: bool = False):
+    """A click callback: ``--name`` is None or a finite number > 0 (>= 0 with ``allow_zero``); NaN and
+    infinities are refused, which click's FloatRange lets through."""
+    def cb(ctx, param, value):
+        if value is None:
+            return value
+        if not (math.isfinite(value) and (value >= 0 if allow_zero else value > 0)):
+            raise click.BadParameter(f"must be a finite number {'>= 0' if allow_zero else '> 0'}, got {value}",
+                                     param_hint=f"'--{name}'")
+        return value
+    return cb
 
 
 def complete_models(ctx, param, incomplete):

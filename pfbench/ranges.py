@@ -3,10 +3,11 @@
 A recipe option (``@recipe(options={key: (type, help, rule)})``, see :mod:`pfbench.recipes`)
 names one rule for its values, so that ``--option Q=-1`` is one ``error:`` line before any work
 rather than a NaN or a traceback deep inside the run, and ``pfbench options ID`` can show what is
-allowed. Three rules cover every option:
+allowed. Four rules cover every option:
 
 * :class:`Range`: a number within bounds, each inclusive or open (:func:`at_least`, :func:`above`);
 * :class:`OneOf`: a text from a fixed list;
+* :class:`ModelSpec`: a registered model (``ob1``, ``ob3:v4``, or one of a user's model file);
 * :class:`ListOf`: comma-separated items (``10,20`` or a JSON list), each typed and checked by
   another rule, with a number of items in bounds.
 
@@ -88,6 +89,24 @@ class OneOf:
 
     def __str__(self) -> str:
         return "one of " + ", ".join(self.choices)
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A registered model spec (the registry is known only at run time: built-ins and the user's
+    model files)."""
+
+    def check(self, value, what: str):
+        from .models import parse_spec
+
+        try:
+            parse_spec(value)
+        except InputError as exc:
+            raise InputError(f"{what}: {exc}") from None
+        return value
+
+    def __str__(self) -> str:
+        return "registered models (`pfbench models` lists them)"
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 claims per paper, and the paper-vs-ours tables, in ``results/REPORT.md`` (and ``--json``)."""
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,6 +68,25 @@ def verify(path: str | Path, recipe_id: str) -> tuple[dict | None, list[str]]:
     return rec, problems
 
 
+def _reproduce(rid: str, out_root: Path, rec: dict | None = None) -> str:
+    """The command that redoes ``rid`` where it was: with ``--out`` (when not the default) and the
+    record's mode, backend, seed and options (a bare `pfbench reproduce ID` would write to results/
+    with the defaults)."""
+    words = ["pfbench reproduce", rid]
+    if out_root != Path("results"):
+        words.append(f"--out {out_root}")
+    rec = rec or {}
+    if rec.get("mode") == "full":
+        words.append("--full")
+    if rec.get("backend") not in (None, "numba"):
+        words.append(f"--backend {rec['backend']}")
+    if rec.get("seed") not in (None, 0):
+        words.append(f"--seed {rec['seed']}")
+    words += [f"--option {k}={json.dumps(v) if not isinstance(v, str) else v}"
+              for k, v in (rec.get("options") or {}).items()]
+    return " ".join(words)
+
+
 def check_results(out_root: str | Path = "results") -> tuple[list[dict], list[Problem]]:
     """Every verified provenance record under ``out_root`` and every problem (damaged or
     incomplete result sets, recipes with no result)."""
@@ -82,10 +102,10 @@ def check_results(out_root: str | Path = "results") -> tuple[list[dict], list[Pr
             files = []
         for p in files:
             rid = f"{paper}:{p.stem}"
-            redo = f"redo: `pfbench reproduce {rid}`"
             rec, probs = verify(p, rid)
             if probs and not _locked(d, p.stem):  # a run may have finished its commit meanwhile
                 rec, probs = verify(p, rid)
+            redo = f"redo: `{_reproduce(rid, out_root, rec)}`"
             if probs and _locked(d, p.stem):  # mid-commit: skipped, not flagged
                 problems.append(Problem(rid, "being written by a running `pfbench reproduce` (its lock is "
                                         "held): not checked", "report again when it has finished",
@@ -106,16 +126,16 @@ def check_results(out_root: str | Path = "results") -> tuple[list[dict], list[Pr
             if any(_leftovers(d, p.stem)) and not _locked(d, p.stem):
                 problems.append(Problem(rid, "an interrupted run left a staging directory (the "
                                         "result above is the previous complete one)",
-                                        "it is removed by the next `pfbench reproduce " + rid + "`",
+                                        f"it is removed by the next `{_reproduce(rid, out_root, rec)}`",
                                         damaged=False))
     for rid, r in reg.items():
         if rid in seen:
             continue
         if r.needs and not _recipes.needs_met(r.needs):
             problems.append(Problem(rid, f"not run: {needs_hint(r.needs)}",
-                                    f"then `pfbench reproduce {rid}`", damaged=False))
+                                    f"then `{_reproduce(rid, out_root)}`", damaged=False))
         else:
-            problems.append(Problem(rid, "not run (no result)", f"run `pfbench reproduce {rid}`",
+            problems.append(Problem(rid, "not run (no result)", f"run `{_reproduce(rid, out_root)}`",
                                     damaged=False))
     return records, problems
 

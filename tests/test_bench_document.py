@@ -294,6 +294,10 @@ def test_cli_document_alone_runs_no_benchmark_and_is_reproducible(monkeypatch, t
     assert r.stderr.startswith("error: results/bench/junk.json: not valid JSON")
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.output
     assert (tmp_path / "docs" / "PERFORMANCE.md").read_text() == page  # the old page stays
+    # a mistyped --out (no results there) rewrote the page with every section "not measured"
+    r = CliRunner().invoke(main, ["bench", "--document", "--out", "nosuch/bench.json"])
+    assert r.exit_code == 2 and "no benchmark results in nosuch" in r.stderr
+    assert (tmp_path / "docs" / "PERFORMANCE.md").read_text() == page
 
 
 def test_cli_document_without_notes_is_an_error(monkeypatch, tmp_path):

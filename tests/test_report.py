@@ -218,3 +218,11 @@ def test_no_claim_agrees_with_an_interval_that_leaves_its_band(tmp_path):
     with pytest.raises(RuntimeError, match="leaves its band"):
         recipes.run(dataclasses.replace(rec, func=lambda ctx: ctx.claim("rate", "w", "q", overlap)),
                     out_root=tmp_path, quiet=True)
+
+
+def test_report_on_a_missing_folder_is_refused_and_creates_nothing(tmp_path):
+    """A mistyped --out made a folder with a report of every recipe "not run", exit 0. Catches the
+    check dropped."""
+    r = CliRunner().invoke(main, ["report", "--out", str(tmp_path / "nosuch")])
+    assert r.exit_code == 2 and "no such results folder" in r.stderr
+    assert not (tmp_path / "nosuch").exists()

@@ -442,7 +442,8 @@ def run_groups(model, y, u, seed_seq, *, backend: str, method, n_per: int, n_fil
     method, scheme = Method.parse(method), Scheme.parse(resampling)
     ab.check_supported(method, scheme, backend)
     if store_particles:
-        raise InputError(f"store_particles is not available on backend {backend!r}")
+        raise InputError(f"keeping every step's particles (store_particles, which this run or recipe needs) is not "
+                         f"available on backend {backend!r}: use backend numba or numpy")
     info = {"rng": "philox4x64-10 (counter-based; not numpy.random.Generator's stream)",
             "array_namespace": "cupy" if backend == "cupy" else "numpy"}
     if backend != "cupy":

@@ -48,7 +48,8 @@ from pathlib import Path
 
 import click
 
-from ..clitypes import OUT_FILE
+from ..clitypes import OUT_FILE, positive_float
+from ..errors import InputError
 from .floor import breakdown_ns, floor_ns
 from .timing import filter_ns, interleaved, paired_ratio, particles_ns, ratio_range
 
@@ -365,7 +366,7 @@ def _section_paths(out_path) -> dict:
               "N_p = 10^6, M = 12 on 1 and 2 threads, set-up included: end_to_end.json beside --out.")
 @click.option("--sweep-workers", default=None, metavar="W[,W...]",
               help="Worker counts of --sweep (default 1, 2 and the usable cores; 1 is always run).")
-@click.option("--sweep-seconds", type=click.FloatRange(min=1.0), default=None,
+@click.option("--sweep-seconds", type=click.FloatRange(min=1.0), default=None, callback=positive_float("sweep-seconds"),
               help="Size of the --sweep sweep in seconds on 1 worker (default 60; 10 with --quick).")
 @click.option("--all", "run_all", is_flag=True, help="Main, startup, scaling, busy, sweep and end-to-end sections.")
 @click.option("--cold-repeats", type=click.IntRange(1, 20), default=1, show_default=True,
@@ -390,8 +391,6 @@ def bench(repeats, quick, scaling, startup, busy, sweep, end_to_end, sweep_worke
 
         sweep_workers = [typed(w, int, "--sweep-workers") for w in comma_list(sweep_workers, "--sweep-workers")]
         if min(sweep_workers) < 1:
-            from ..errors import InputError
-
             raise InputError(f"--sweep-workers must be integers >= 1, got {min(sweep_workers)}")
     if run_all:
         sections = ["bench", "startup", "scaling", "busy", "sweep", "end_to_end"]
@@ -409,6 +408,10 @@ def bench(repeats, quick, scaling, startup, busy, sweep, end_to_end, sweep_worke
         from . import document as doc
 
         doc.check_notes()
+        where = paths["bench"].parent
+        if not sections and not any(where.glob("*.json")):   # a mistyped --out: a page of "not measured"
+            raise InputError(f"--document: no benchmark results in {where} (give the --out of an earlier "
+                             "`pfbench bench`, or run one)")
         check_writable(doc.DOC, "--document")
     results, lines = {}, []
 

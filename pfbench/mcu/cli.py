@@ -1,11 +1,10 @@
 """``pfbench mcu ...``: Cortex-M cost model commands (estimate, fit, calibrate)."""
 from __future__ import annotations
 
-import math
 
 import click
 
-from ..clitypes import complete_models
+from ..clitypes import complete_models, positive_float, positive_int
 from ..methods import PARTICLE_METHODS
 from ..io import to_json
 from ..options import parse_key_values
@@ -17,46 +16,27 @@ def mcu():
     """Cortex-M time, energy and memory predictions (M0+, M3, M4F, M7, M33)."""
 
 
-def _positive_int(name):
-    def cb(ctx, param, value):
-        if value is not None and value < 1:
-            raise click.BadParameter(f"must be >= 1, got {value}", param_hint=f"'--{name}'")
-        return value
-    return cb
-
-
-def _positive_float(name, allow_zero=False):
-    def cb(ctx, param, value):
-        if value is None:
-            return value
-        ok = (value >= 0 if allow_zero else value > 0) and math.isfinite(value)
-        if not ok:
-            raise click.BadParameter(f"must be {'>= 0' if allow_zero else '> 0'}, got {value}",
-                                     param_hint=f"'--{name}'")
-        return value
-    return cb
-
 
 @mcu.command()
 @click.option("--model", "model_name", default="ob1", show_default=True, shell_complete=complete_models,
               help="Registered model, optionally with a variant (ob3:v4).")
-@click.option("--steps", type=int, default=1000, show_default=True, callback=_positive_int("steps"))
-@click.option("--particles", type=int, default=1000, show_default=True, callback=_positive_int("particles"))
+@click.option("--steps", type=int, default=1000, show_default=True, callback=positive_int("steps"))
+@click.option("--particles", type=int, default=1000, show_default=True, callback=positive_int("particles"))
 @click.option("--precision", type=click.Choice(["float", "double"]), default="float", show_default=True,
               help="float: FPU build (paper D(O)); double: soft-float build (paper D(S)).")
 @click.option("--method", type=click.Choice(PARTICLE_METHODS), default="bootstrap", show_default=True,
               help="A particle method (the operation counts cover the bootstrap-family kernel).")
-@click.option("--filters", type=int, default=1, show_default=True, callback=_positive_int("filters"),
+@click.option("--filters", type=int, default=1, show_default=True, callback=positive_int("filters"),
               help="MultiPDF sub-filters N_f.")
 @click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
 @click.option("--core", "core_name", default="m4", show_default=True,
               help="Core: m0plus, m3, m4 (the paper's STM32F407), m7, m33.")
-@click.option("--clock-mhz", type=float, default=None, callback=_positive_float("clock-mhz"),
+@click.option("--clock-mhz", type=float, default=None, callback=positive_float("clock-mhz"),
               help="Core clock [default: the core's typical chip, 168 MHz for the M4].")
 @click.option("--cycles", "cycles_file", type=click.Path(dir_okay=False), default=None,
               help="Cycle table JSON (default: the core's built-in table).")
 @click.option("--board-power-w", type=float, default=None,
-              callback=_positive_float("board-power-w", allow_zero=True),
+              callback=positive_float("board-power-w", allow_zero=True),
               help="Board power for the board energy figure [default: 1.39 W on the M4 (Table 3), none else].")
 @click.option("--no-calibration", is_flag=True, help="Raw instruction-table cycles, no Table-2 efficiency "
               "(= --basis table).")
@@ -130,12 +110,12 @@ def _format(r: dict) -> str:
 @mcu.command()
 @click.option("--model", "model_name", default="ob1", show_default=True, shell_complete=complete_models,
               help="Registered model, optionally with a variant (ob3:v4).")
-@click.option("--steps", type=int, default=1000, show_default=True, callback=_positive_int("steps"),
+@click.option("--steps", type=int, default=1000, show_default=True, callback=positive_int("steps"),
               help="Run length M (per-step cost is averaged over min(M, 100) steps; RAM with --history).")
-@click.option("--period-us", type=float, required=True, callback=_positive_float("period-us"),
+@click.option("--period-us", type=float, required=True, callback=positive_float("period-us"),
               help="Sampling period T in microseconds (1000 = 1 kHz).")
 @click.option("--method", type=click.Choice(PARTICLE_METHODS), default="bootstrap", show_default=True)
-@click.option("--filters", type=int, default=1, show_default=True, callback=_positive_int("filters"),
+@click.option("--filters", type=int, default=1, show_default=True, callback=positive_int("filters"),
               help="MultiPDF sub-filters N_f.")
 @click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
 @click.option("--core", "core_names", multiple=True, help="Restrict to these cores (repeatable; default all five).")

@@ -19,6 +19,7 @@ generators) must have a cycle count, else :class:`~pfbench.errors.DataError` nam
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -83,7 +84,7 @@ def load_table(path: str | Path | None = None) -> CycleTable:
         raw = json.loads(p.read_text())
     except FileNotFoundError:
         raise DataError(f"cycles file {str(p)!r} not found") from None
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:   # a binary file: not UTF-8 text
         raise DataError(f"cycles file {str(p)!r} is not valid JSON: {exc}") from None
     if not isinstance(raw, dict):
         raise DataError(f"cycles file {str(p)!r}: expected a JSON object")
@@ -102,13 +103,15 @@ def load_table(path: str | Path | None = None) -> CycleTable:
         if not isinstance(tab, dict):
             raise DataError(f"cycles file {str(p)!r}: {prec!r} cycles must be an object")
         for op, v in tab.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0 or v != v:
-                raise DataError(f"cycles file {str(p)!r}: {prec} cycles of {op!r} must be a "
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < math.inf:
+                raise DataError(f"cycles file {str(p)!r}: {prec} cycles of {op!r} must be a finite "
                                 f"non-negative number, got {v!r}")
     generators = raw.get("generators")
     if generators is None:
         generators = (json.loads(DEFAULT_TABLE.read_text())["generators"] if p != DEFAULT_TABLE else {})
     clock = raw.get("clock_mhz", 168.0)
+    if isinstance(clock, bool) or not isinstance(clock, (int, float)) or not 0 < clock < math.inf:
+        raise DataError(f"cycles file {str(p)!r}: clock_mhz must be a finite number > 0, got {clock!r}")
     table = CycleTable(cycles=cycles, generators=generators, source=str(raw.get("source", "")),
                        name=str(raw.get("name", p.stem)), path=str(p),
                        clock_mhz=float(clock), notes=raw.get("notes", {}))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import click
 
-from ..clitypes import complete_models
+from ..clitypes import complete_models, positive_float, positive_int
 from ..errors import InputError, PfbenchError
 
 
@@ -38,20 +38,21 @@ def _parse_configs(text: str | None):
 @click.option("--precision", type=click.Choice(["float", "double"]), default="float",
               show_default=True, help="float = FPU single precision (-Ofast); double = soft-float "
                                       "double (-O0; hand port: D(S), --model: M4F hard-float ABI).")
-@click.option("--steps", "-M", type=int, default=None,
+@click.option("--steps", "-M", type=int, default=None, callback=positive_int("steps"),
               help="M iterations to predict for [default: 1000; with --model 100].")
-@click.option("--particles", "-N", type=int, default=None,
+@click.option("--particles", "-N", type=int, default=None, callback=positive_int("particles"),
               help="N particles to predict for [default: 1000; with --model 500].")
 @click.option("--configs", default=None,
               help="Small MxN configurations to emulate and fit (default depends on precision).")
 @click.option("--opt", default=None, help="Override the -O level of the build (e.g. -O2).")
-@click.option("--clock-mhz", type=float, default=None, help="Core clock (default 168 MHz).")
+@click.option("--clock-mhz", type=float, default=None, callback=positive_float("clock-mhz"),
+              help="Core clock (default 168 MHz).")
 @click.option("--core", default="m4", show_default=True,
               help="Cortex-M core (m0plus, m3, m4, m7, m33): with --model the code is compiled "
                    "for it and timed with its table data/cortex_<core>_timing.json (m7 code with "
                    "double-precision FPU instructions cannot run in unicorn); the hand port is "
                    "always the M4F build.")
-@click.option("--seed", type=int, default=1, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
               help="srand() seed in the C code (and the host simulation seed with --model).")
 @click.option("--tile", type=click.IntRange(1, 1024), default=32, show_default=True,
               help="With --model: particles per model call (PF_TILE); numba's per-call array "

@@ -82,6 +82,8 @@ class Store:
         path = Path(path)
         if path.suffix == ".parquet" and not path.is_file() and journal_path(path).is_file():
             path = journal_path(path)
+        if path.is_dir():
+            raise InputError(f"sweep store {path} is a folder: give the store's file (X.parquet or X.jsonl)")
         if not path.is_file():
             raise InputError(f"sweep store {path} does not exist")
         raw = path.read_bytes()

@@ -27,7 +27,7 @@ from __future__ import annotations
 import pandas as pd
 
 from pfbench.mcu import cores
-from pfbench.ranges import ListOf, OneOf, at_least
+from pfbench.ranges import ListOf, ModelSpec, OneOf, at_least
 from pfbench.recipes import recipe
 
 from .mcu import SRAND_SEED
@@ -48,7 +48,7 @@ TARGET = 0.25   # the cost model should be within 25 % of the emulation
         options={"steps": (int, "M of the compared run (default 100)", at_least(1, INT32)),
                  "particles": (int, "N_p of the compared run (default 500)", at_least(1, INT32)),
                  "models": (list, "comma-separated model specs (default: every registered model)",
-                            ListOf(str)),
+                            ListOf(str, ModelSpec())),
                  "seed": (int, "host simulation and srand() seed (default 1)", SRAND_SEED),
                  "core": (str, "core to compile for and time (default m4)", OneOf(*cores.names()))})
 def mcu_models(ctx):

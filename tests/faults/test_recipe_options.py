@@ -8,7 +8,7 @@ from click.testing import CliRunner
 from pfbench import recipes
 from pfbench.cli import main
 from pfbench.errors import InputError
-from pfbench.ranges import ListOf, OneOf, Range, above, at_least
+from pfbench.ranges import ListOf, ModelSpec, OneOf, Range, above, at_least
 
 
 def _refused(tmp_path, rec_id, text):
@@ -38,6 +38,8 @@ def _outside(rule, kind) -> list[str]:
         return bad
     if isinstance(rule, OneOf):
         return ["zz-no-such-choice"]
+    if isinstance(rule, ModelSpec):
+        return ["zz-no-such-model"]
     if isinstance(rule, ListOf):
         ok = {int: "1", float: "1.0", str: "x"}[rule.item]
         bad = ["", f"{ok},{ok}"]                                   # no items; an item twice

@@ -91,10 +91,14 @@ def test_cycles_file_missing_operation_named(tmp_path):
 
 @pytest.mark.parametrize("content,match", [("{not json", "not valid JSON"),
                                            ('{"float": {"add": -1}}', "non-negative"),
-                                           ('{"quad": {"add": 1}}', "no 'float' or 'double'")])
+                                           ('{"quad": {"add": 1}}', "no 'float' or 'double'"),
+                                           # each of these three was an internal-error traceback
+                                           ('{"float": {"add": 1e400}}', "must be a finite non-negative"),
+                                           ('{"float": {"add": 1}, "clock_mhz": "fast"}', "clock_mhz must be a finite"),
+                                           (b"\xff\xfe\x00binary", "not valid JSON")])
 def test_bad_cycles_files(tmp_path, content, match):
     f = tmp_path / "t.json"
-    f.write_text(content)
+    f.write_bytes(content) if isinstance(content, bytes) else f.write_text(content)
     with pytest.raises(PfbenchError, match=match):
         load_table(f)
 

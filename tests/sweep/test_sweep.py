@@ -235,6 +235,8 @@ def test_summarize_cli(tmp_path):
     assert Path(str(out) + ".summary.png").is_file()
     r = CliRunner().invoke(main, ["sweep", "summarize", str(tmp_path / "nope.jsonl")])
     assert r.exit_code == 2 and "does not exist" in r.output
+    r = CliRunner().invoke(main, ["sweep", "summarize", str(tmp_path)])   # a folder: not "does not exist"
+    assert r.exit_code == 2 and "is a folder" in r.output
 
 
 def test_summary_interval():
