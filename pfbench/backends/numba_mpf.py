@@ -20,9 +20,7 @@ from pfbench.backends.numba_mpf_steps import kalman_update as _kalman_update
 from pfbench.backends.numba_mpf_steps import mixture_moments as _mixture_moments
 from pfbench.backends.numba_mpf_steps import sandwich as _sandwich
 from pfbench.backends.numba_mpf_steps import time_update as _time_update
-from pfbench.backends.numba_mpf_steps import CONSTRAIN as _CONSTRAIN
-from pfbench.backends.numba_mpf_steps import OBSERVATION as _OBSERVATION
-from pfbench.backends.numba_mpf_steps import TRANSITION as _TRANSITION
+from pfbench.backends.numba_mpf_steps import CONSTRAIN as _CONSTRAIN, OBSERVATION as _OBSERVATION, TRANSITION as _TRANSITION
 from pfbench.backends.numba_mpf_steps import copy_into as _copy_into
 from pfbench.backends.numba_mpf_steps import normals_into as _normals_into
 from pfbench.backends.native_call import caller as _caller

@@ -215,8 +215,7 @@ def mixture_moments(wu, total, mom, xn, post, split, est, cov):
                 cov[idx_l[b], idx_l[a]] += v
 
 
-#: ``copy_into``'s codes of the structure function whose result it copies, and the messages a
-#: changed shape raises (constants, as compiled code needs)
+#: ``copy_into``'s codes of the structure function it copies from, and their (constant) messages
 TRANSITION, OBSERVATION, CONSTRAIN = 0, 1, 2
 _RESHAPED_TRANSITION = "cl_transition" + RESHAPED
 _RESHAPED_OBSERVATION = "cl_observation" + RESHAPED

@@ -68,8 +68,7 @@ _STRATIFIED = int(_Scheme.STRATIFIED)  # compared one by one below, so a scheme'
 #: particles per tile of the fused pass A: the tile's noise, new states and likelihoods stay in
 #: L1/L2, and the model's result arrays, allocated per tile, are a fixed cost per tile
 _TILE = 1024
-#: what a model function whose array changed shape after the check before the run raises (its
-#: rows are read and stored by index: a row more or fewer would be memory out of bounds)
+#: a model's array of another shape than in the check: refused (rows are read/stored by index)
 _RESHAPED_TRANSITION = "transition" + _RESHAPED
 _RESHAPED_LOG_LIKELIHOOD = "log_likelihood" + _RESHAPED
 _prange = _numba.prange

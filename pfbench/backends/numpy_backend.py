@@ -175,15 +175,15 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
     logn = np.log(n)
     lw = np.full((G, n), -logn)
     draw_initial(initial, p, rng, x, brngs)
+    xs, ls = (n, n_x), (n,)   # the shapes of the model's states and log-likelihoods, checked every step
     for t in range(y.shape[0]):
-        yt, ut = y[t], u[t]
+        yt, ut, at = y[t], u[t], f"at step {t}"
         for g in range(G):
             xg = x[g]
             first = 0.0
             if method == Method.ASIR:  # first stage
-                mu = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p),
-                            (n, n_x), f"at step {t}")
-                lam_all = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), (n,), f"at step {t}"))
+                mu = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p), xs, at)
+                lam_all = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), ls, at))
                 wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
                 if deg1:
@@ -195,10 +195,8 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             # transition noise: block b from its own stream (one block: the filter's stream)
             noise = np.concatenate([r.standard_normal((sl.stop - sl.start, n_noise), dtype=ptype)
                                     for r, sl in zip(brngs, blocks)])
-            xg[:] = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p),
-                           (n, n_x), f"at step {t}")   # the check before the run saw step 0 only
-            ll = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut,
-                                                                                 t, p), (n,), f"at step {t}"))
+            xg[:] = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p), xs, at)
+            ll = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut, t, p), ls, at))
             if method == Method.ASIR:
                 ll = valid_log_likelihood(ll - lam)
             wu, cdf, m, total, deg = weigh(lw[g], ll, blocks)
