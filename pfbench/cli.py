@@ -310,9 +310,9 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         out["note"] = res.info["note"]
     bad = res.first_nonfinite_step()
     if bad is not None:
-        why = (f"the log-likelihood is {res.loglik} from step {bad} on: there every particle's likelihood was "
-               "zero, NaN or infinite (check the model's log_likelihood and transition, or the measurement "
-               "at that step)")
+        from .filters.result import NON_FINITE_WHY
+
+        why = f"the log-likelihood is {res.loglik} from step {bad} on: there {NON_FINITE_WHY}"
         if strict:
             raise PfbenchError(why)
         click.echo(f"warning: {why}", err=True)

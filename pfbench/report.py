@@ -82,7 +82,7 @@ def _reproduce(rid: str, out_root: Path, rec: dict | None = None) -> str:
         words.append(f"--backend {rec['backend']}")
     if rec.get("seed") not in (None, 0):
         words.append(f"--seed {rec['seed']}")
-    words += [f"--option {k}={json.dumps(v) if not isinstance(v, str) else v}"
+    words += [f"--option {k}={v if isinstance(v, str) else json.dumps(v, separators=(',', ':'))}"
               for k, v in (rec.get("options") or {}).items()]
     return " ".join(words)
 

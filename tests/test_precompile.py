@@ -81,14 +81,19 @@ def test_compiled_kernels_load_in_a_later_process(tmp_path):
 def test_a_mistake_in_the_models_code_fails_its_target(readme_model_file):
     """A model whose log_likelihood returns complex numbers is the model's failure, not "not
     applicable" (which exits 0 as if the method simply did not apply). Catches ModelError taken
-    for a refused combination."""
+    for a refused combination, and a missing function taken for a mistake."""
     from pfbench import models
 
     f = readme_model_file("compile_base")
     f.write_text(f.read_text() + (
         "\n@register('compile_complex_ll')\nclass ComplexLoglik(MyGrowth):\n    @staticmethod\n"
-        "    def log_likelihood(y, x, u, t, p):\n        return MyGrowth.log_likelihood(y, x, u, t, p) + 0j\n"))
+        "    def log_likelihood(y, x, u, t, p):\n        return MyGrowth.log_likelihood(y, x, u, t, p) + 0j\n"
+        "\n@register('compile_no_ll')\nclass NoLoglik(MyGrowth):\n"
+        "    log_likelihood = StateSpaceModel.log_likelihood\n"))
     models.load_files([f])
     row = precompile.compile_target(Target("compile_complex_ll"))
     assert row["status"] == "failed" and "log_likelihood() must return a float array" in row["detail"]
     assert "complex128" in row["detail"]
+    # a model without the function a method needs is that method not applying, not a mistake
+    row = precompile.compile_target(Target("compile_no_ll"))
+    assert row["status"] == "not applicable" and "defines no log_likelihood()" in row["detail"]

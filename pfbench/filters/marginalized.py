@@ -61,7 +61,7 @@ from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, ModelError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
-from ..models.contract import PROBE, call, call_returning, linear_indices, name_of, returned
+from ..models.contract import PROBE, call, call_returning, linear_indices, name_of, returned, shaped
 from ..resampling import Scheme
 from ..methods import check_backend, check_dtype
 from .inputs import check_inputs, seed_sequence
@@ -353,8 +353,8 @@ def structure(model, y, u) -> dict:
 
 def structure_check(model, n: int, d_n: int, d_l: int, n_y: int):
     """``check(fn, out, step=None)``: ``out``, what the structure function ``fn`` returned on n
-    particles at ``step`` (None: in the check before the run), as a tuple of its arrays, else an
-    InputError naming the model, the function, the result and the step. Both backends check the
+    particles at ``step`` (None: in the check before the run), as a tuple of its arrays, else a
+    ModelError naming the model, the function, the result and the step. Both backends check the
     probe before the run; the NumPy driver checks every step; the compiled one copies each result
     into an array of the expected shape and refuses another
     (:func:`pfbench.backends.numba_mpf_steps.copy_into`)."""
@@ -384,10 +384,8 @@ def _check_shapes(model, u, idx_n, d_l, m0) -> None:
     check = structure_check(model, n, d_n, d_l, int(model.n_y))
     xn = np.zeros((n, 0))
     if d_n:
-        x = np.asarray(call(model, "initial", _NEEDED, np.random.default_rng(0), n, p))
-        if x.shape != (n, int(model.n_x)):
-            raise ModelError(f"model {name_of(model)!r}: initial() returned an array of shape {x.shape}, "
-                             f"expected {(n, int(model.n_x))}")
+        x = shaped(model, "initial", call(model, "initial", _NEEDED, np.random.default_rng(0), n, p),
+                   (n, int(model.n_x)))
         xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
     check("cl_transition", call(model, "cl_transition", _NEEDED, xn, u[0], 0, p))
     check("cl_constrain", call(model, "cl_constrain", _NEEDED, xn.copy(), p))

@@ -7,6 +7,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+#: why a run's log-likelihood is not finite, and where to look; ``pfbench run`` and sweeps say it
+NON_FINITE_WHY = ("every particle's likelihood was zero, NaN or infinite (check the model's log_likelihood and "
+                  "transition, or the measurement at that step)")
+
+
 @dataclass
 class FilterResult:
     """What every filter returns.

@@ -39,7 +39,7 @@ import inspect
 
 import numpy as np
 
-from ..errors import ModelError, PfbenchError
+from ..errors import InputError, ModelError, PfbenchError
 
 FUNCTIONS = ("initial", "transition", "log_likelihood", "observe", "proposal", "proposal_log_weight",
              "predictive_log_likelihood", "cl_transition", "cl_observation", "cl_constrain")
@@ -76,8 +76,8 @@ def _check_static(model, needs) -> set:
     have = defined(model)
     for fn in FUNCTIONS:
         if fn not in have:
-            if fn in needs:
-                raise ModelError(f"model {name_of(model)!r} defines no {fn}(), which {needs[fn]} needs "
+            if fn in needs:   # the method does not apply to this model: not a mistake in its code
+                raise InputError(f"model {name_of(model)!r} defines no {fn}(), which {needs[fn]} needs "
                                  "(see `pfbench.models.base`)")
             continue
         if not isinstance(inspect.getattr_static(type(model), fn), staticmethod):
@@ -109,7 +109,7 @@ def _probe_args(model, y, u) -> dict:
 
 def linear_indices(model) -> np.ndarray:
     """The model's ``linear_states`` as distinct int64 indices of x^l in 0..n_x-1, at least one;
-    else an ModelError."""
+    else a ModelError."""
     raw = np.asarray(model.linear_states)
     n_x = int(model.n_x)
     if (raw.ndim != 1 or raw.size == 0 or raw.dtype.kind not in "iu" or len(set(raw.tolist())) != raw.size
@@ -164,7 +164,7 @@ def call_returning(model, fn: str, names: tuple | None, *args):
 
 def returned(model, fn: str, out, names: tuple | None):
     """``out``, what the model's ``fn`` returned, as a tuple of one result per name of ``names``
-    (None: ``out``, any one value); an ModelError when it is not a tuple or list of that length."""
+    (None: ``out``, any one value); a ModelError when it is not a tuple or list of that length."""
     if names is None:
         return out
     if not isinstance(out, (tuple, list)) or len(out) != len(names):
@@ -175,7 +175,7 @@ def returned(model, fn: str, out, names: tuple | None):
 
 def shaped(model, fn: str, value, want: tuple, where: str | None = None) -> np.ndarray:
     """``value``, what the model's ``fn`` returned on the probe block (``where`` None) or ``where``
-    else (e.g. "at step 3"), as a float64 array of shape ``want``; an ModelError naming it otherwise."""
+    else (e.g. "at step 3"), as a float64 array of shape ``want``; a ModelError naming it otherwise."""
     arr = np.asanyarray(value)   # any: the operation counter's arrays stay counting (pfbench.mcu.counting)
     if arr.shape != want or arr.dtype.kind not in "fiu":
         got = f"shape {arr.shape} of {arr.dtype}" if arr.ndim or np.issubdtype(arr.dtype, np.number) \
@@ -186,7 +186,7 @@ def shaped(model, fn: str, value, want: tuple, where: str | None = None) -> np.n
 
 
 def check_model(model, y, u, needs: dict | None = None) -> None:
-    """Check the model's contract on a probe block (module docstring); an ModelError naming the
+    """Check the model's contract on a probe block (module docstring); a ModelError naming the
     model, the function and the problem otherwise. ``y``, ``u``: the run's checked inputs
     (:func:`pfbench.filters.inputs.check_inputs`). ``needs``: function -> what needs it (e.g.
     ``{"log_likelihood": "method 'bootstrap'"}``): those must be defined; the others are checked
@@ -220,7 +220,7 @@ def needs_of(family: str, label: str) -> dict:
     return {}
 def numba_failure(model, y, u, exc: BaseException) -> ModelError | None:
     """After numba failed to compile a kernel for ``model`` (``exc``): compile each model function
-    alone on the probe's arguments and return an ModelError naming the first that numba cannot
+    alone on the probe's arguments and return a ModelError naming the first that numba cannot
     compile, with numba's first line; None when each compiles alone (then the failure is not the
     model's, and the caller re-raises it)."""
     import numba

@@ -147,9 +147,10 @@ def _do_run(kw: dict) -> None:
                    "re-run the same command to resume", err=True)
         sys.exit(130)
     if rep.non_finite_loglik:
+        from ..filters.result import NON_FINITE_WHY
+
         click.echo(f"warning: {rep.non_finite_loglik} of {rep.done_before + rep.done_now} tasks have a log-likelihood "
-                   "of -inf or NaN: at some step every particle's likelihood was zero, NaN or infinite (check the "
-                   "model's log_likelihood and transition); their aRMSE is kept", err=True)
+                   f"of -inf or NaN: at some step {NON_FINITE_WHY}; their aRMSE is kept", err=True)
     if as_json:
         from ..io import to_json
 

@@ -195,40 +195,34 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     ``pfbench.run_filter(..., method=method, estimate=estimate)`` (same streams, kernels and
     default ESS threshold) but without its per-call thread pool. Returns (est, sub_est), and the
     log-likelihood estimate as a third item with ``want_loglik``."""
-    from ..filters.particle import split_particles
+    from ..filters.inputs import ess_count
+    from ..filters.particle import run_groups, split_particles, streams
+    from ..methods import ARRAY_BACKENDS
     from ..models.contract import named_model_errors
 
     m = Method.parse(method)
     n_per = split_particles(n_particles, n_filters) if m == Method.MULTIPDF else int(n_particles)
     with named_model_errors(model, y, u, backend):   # the model's exceptions named, as run_filter does
-        out = _particle_outputs(model, y, u, m, n_per, n_filters, seed, backend, resampling, estimate)
+        if backend in ARRAY_BACKENDS:  # cupy: the array-namespace kernel, its own Philox draws
+            if Estimate.parse(estimate) == Estimate.POST:
+                raise InputError(f"estimate='post' is not available on backend {backend!r}")
+            from ..backends.cupy_backend import run_groups as run_array
+            from ..filters.inputs import seed_sequence
+
+            out, _, _ = run_array(model, y, u, seed_sequence(seed), backend=backend, method=m, n_per=n_per,
+                                  n_filters=n_filters, resampling=resampling,
+                                  ess_threshold=ess_count(None, n_per), dtype="float64")
+        else:
+            out, _ = run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
+                                n_filters=n_filters, resampling=resampling,
+                                ess_threshold=ess_count(None, n_per), backend=backend, n_threads=1,
+                                estimate=estimate)
     est = out["est"]
     if want_loglik:
         from ..filters.result import mixture_loglik_increments
 
         return est.mean(axis=0), est, float(mixture_loglik_increments(out["inc"]).sum())
     return est.mean(axis=0), est
-
-
-def _particle_outputs(model, y, u, m, n_per, n_filters, seed, backend, resampling, estimate) -> dict:
-    """The outputs of :func:`pfbench.filters.particle.run_groups` (or the array backends' twin) for
-    :func:`run_particle_family`."""
-    from ..filters.inputs import ess_count
-    from ..filters.particle import run_groups, streams
-    from ..methods import ARRAY_BACKENDS
-
-    if backend in ARRAY_BACKENDS:  # cupy: the array-namespace kernel, its own Philox draws
-        if Estimate.parse(estimate) == Estimate.POST:
-            raise InputError(f"estimate='post' is not available on backend {backend!r}")
-        from ..backends.cupy_backend import run_groups as run_array
-        from ..filters.inputs import seed_sequence
-
-        return run_array(model, y, u, seed_sequence(seed), backend=backend, method=m, n_per=n_per,
-                         n_filters=n_filters, resampling=resampling,
-                         ess_threshold=ess_count(None, n_per), dtype="float64")[0]
-    return run_groups(model, y, u, streams(seed, n_filters, False), method=m, n_per=n_per,
-                      n_filters=n_filters, resampling=resampling, ess_threshold=ess_count(None, n_per),
-                      backend=backend, n_threads=1, estimate=estimate)[0]
 
 
 def run_multipdf(model, y, u, n_particles: int, n_filters: int, seed, backend: str = "numba",
