@@ -33,8 +33,8 @@ from pathlib import Path
 
 import click
 
-from .clitypes import (OUT_DIR, OUT_FILE, ChoiceList, complete_models, complete_papers, complete_recipes,
-                       positive_int)
+from .clitypes import (OUT_DIR, OUT_FILE, ChoiceList, NonEmptyPath, complete_models, complete_papers,
+                       complete_recipes, positive_int)
 from .errors import InputError, PfbenchError
 from .methods import BACKENDS, DTYPES, ESTIMATES, METHODS
 from .options import parse_key_values
@@ -106,7 +106,11 @@ class PfbenchGroup(click.Group):
             hint = ""
             if exc.ctx is not None:
                 hint = f" (see '{exc.ctx.command_path} --help')"
-            click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
+            message = exc.format_message()
+            if isinstance(exc, click.NoSuchOption) and exc.option_name in ROOT_OPTIONS:
+                message, hint = (f"{exc.option_name} is an option of pfbench itself: give it before the "
+                                 f"command, as in {ROOT_OPTIONS[exc.option_name]}"), ""
+            click.echo(f"error: {_one_line(message)}{hint}", err=True)
             sys.exit(2)
         except click.exceptions.Exit as exc:
             sys.exit(exc.exit_code)
@@ -146,6 +150,11 @@ class PfbenchGroup(click.Group):
         if isinstance(rv, int):
             sys.exit(rv)
         sys.exit(0)
+
+
+#: the root group's options a user may put after the command by mistake, with how to write them
+ROOT_OPTIONS = {"--models": "`pfbench --models FILE.py run ...` (or set PFBENCH_MODELS=FILE.py)",
+                "--debug": "`pfbench --debug run ...` (or set PFBENCH_DEBUG=1)", "--version": "`pfbench --version`"}
 
 
 def _set_debug(ctx, param, value):
@@ -230,7 +239,7 @@ def truth_stream(seed: int):
 @click.option("--filters", type=int, default=1, show_default=True, callback=positive_int("filters"),
               help="N_f, MultiPDF sub-filters.")
 @click.option("--steps", type=int, default=1000, show_default=True, callback=positive_int("steps"),
-              help="M, number of time steps to simulate.")
+              help="M, number of time steps to simulate (with --data: filter the log's first M rows).")
 @click.option("--resampling", type=click.Choice(SCHEMES), default="systematic", show_default=True)
 @click.option("--ess-threshold", type=float, default=None,
               help="sir / guided: resample when N_eff < this fraction of N_p, in (0, 1] (default 0.5).")
@@ -248,7 +257,7 @@ def truth_stream(seed: int):
               help="Seed of the simulated truth (default: a stream derived from --seed, apart from the "
                    "filter's, so the filter never shares the truth's noise).")
 @click.option("--param", "params", multiple=True, metavar="KEY=VALUE", help=PARAM_HELP)
-@click.option("--data", type=click.Path(dir_okay=False), default=None,
+@click.option("--data", type=NonEmptyPath(dir_okay=False), default=None,
               help="CSV log (time_s, y..., u...) to filter instead of a simulation.")
 @click.option("--out", "out_file", **OUT_FILE, default=None,
               help="Write the per-step estimates, variances, ESS and log-likelihood increments to this "
@@ -265,6 +274,7 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
 
     name, kw = models.parse_spec(model_name, parse_key_values(params, "--param"))
     model = models.get(name, **kw)
+    _refuse_unused(method, data)
     if out_file and Path(out_file).suffix.lower() not in (".csv", ".parquet"):
         raise click.BadParameter(f"{out_file}: the file must end in .csv or .parquet", param_hint="'--out'")
     if out_file:
@@ -285,11 +295,16 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         from .plants.datalog import load_log
 
         traj = load_log(data, model)
+        if _given("steps"):
+            traj = _first_rows(traj, steps, data)
     else:
         traj = model.simulate(steps, seed=truth_stream(seed) if truth_seed is None else truth_seed)
     res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
                      resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
                      seed=seed, n_threads=threads, estimate=estimate)
+    if threads is not None and threads > numba_threads():
+        click.echo(f"note: --threads {threads}: numba has {numba_threads()} threads here (NUMBA_NUM_THREADS, "
+                   "the cores), so the run used at most that many", err=True)
     have_truth = bool(np.all(np.isfinite(traj.x)))
     out = {
         "model": name, "params": kw, "method": method, "backend": backend, "dtype": dtype,
@@ -304,6 +319,10 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         "elapsed_s": res.elapsed_s,
         "ns_per_particle_step": res.ns_per_particle_step,
     }
+    if method == "kalman":  # no particles: what is printed for a particle filter would be noise here
+        for key in ("n_particles", "resampling", "estimate", "n_resampled", "n_degenerate_steps"):
+            del out[key]
+        out["ns_per_step"] = out.pop("ns_per_particle_step")
     if "n_particles_requested" in res.info:
         out["n_particles_requested"] = res.info["n_particles_requested"]
     if res.info.get("note"):
@@ -341,6 +360,46 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         click.echo(f"{k:>22}: {v}")
     if out.get("note"):
         click.echo(f"note: {out['note']}")
+
+
+def _given(name: str) -> bool:
+    """Whether the current command's option ``name`` (its parameter name) was given by the user."""
+    from click.core import ParameterSource
+
+    return click.get_current_context().get_parameter_source(name) not in (ParameterSource.DEFAULT, None)
+
+
+#: the ``run`` options each method cannot use (the Kalman filter is exact: no particles, no random
+#: numbers of its own, float64), and those a --data log makes meaningless
+_UNUSED = {"kalman": ("particles", "resampling", "dtype", "threads"), "sis": ("resampling",)}
+
+
+def _refuse_unused(method: str, data) -> None:
+    """An option given for a run that cannot use it is a usage error naming it, as ``--ess-threshold``
+    with ``bootstrap`` is, rather than a value printed beside results it did not shape."""
+    unused = [f"--{n.replace('_', '-')}" for n in _UNUSED.get(method, ()) if _given(n)]
+    if unused:
+        why = "it never resamples" if method == "sis" else "it is exact: no particles, no draws, float64"
+        raise click.UsageError(f"{', '.join(unused)} cannot apply to --method {method} ({why})")
+    if data and _given("truth_seed"):
+        raise click.UsageError("--truth-seed seeds the simulated truth, and with --data nothing is simulated")
+
+
+def _first_rows(traj, steps: int, data):
+    """The first ``steps`` rows of a loaded log (``--steps`` with ``--data``)."""
+    import dataclasses
+
+    if steps > traj.n_steps:
+        raise click.BadParameter(f"{steps} steps, but {data} has {traj.n_steps} rows", param_hint="'--steps'")
+    return dataclasses.replace(traj, x=traj.x[:steps], y=traj.y[:steps],
+                               u=None if traj.u is None else traj.u[:steps])
+
+
+def numba_threads() -> int:
+    """The threads numba may start in this process (``NUMBA_NUM_THREADS``, by default the cores)."""
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
 
 
 # --------------------------------------------------------------------------- compile

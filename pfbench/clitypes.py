@@ -38,7 +38,7 @@ class ChoiceList(click.ParamType):
         self.choices = tuple(choices)
 
     def convert(self, value, param, ctx):
-        comma_list(value, f"--{param.name}" if param is not None else "value", self.choices)
+        comma_list(value, getattr(param, "opts", None) and param.opts[0] or "value", self.choices)
         return value
 
     def shell_complete(self, ctx, param, incomplete):
@@ -95,5 +95,15 @@ def complete_tasks(ctx, param, incomplete):
 
 
 #: ``--out`` naming a file (created or replaced) and naming a folder (created if missing)
-OUT_FILE = dict(type=click.Path(dir_okay=False), metavar="FILE")
-OUT_DIR = dict(type=click.Path(file_okay=False), metavar="DIR")
+class NonEmptyPath(click.Path):
+    """click's path type, refusing an empty name: ``--out ""`` (an unset shell variable) would
+    otherwise mean no output at all, or the current folder."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and not value.strip():
+            self.fail("an empty path (an unset shell variable?)", param, ctx)
+        return super().convert(value, param, ctx)
+
+
+OUT_FILE = dict(type=NonEmptyPath(dir_okay=False), metavar="FILE")
+OUT_DIR = dict(type=NonEmptyPath(file_okay=False), metavar="DIR")

@@ -251,6 +251,27 @@ def lock_path(output) -> Path:
     return output.with_name(output.name + ".lock")
 
 
+def writer_of(output) -> str | None:
+    """Who holds the lock of ``output`` now (e.g. ``"PID 123"``), None if nobody does: a reader of an
+    output being written (a sweep store) can say that what it read is partial."""
+    import fcntl
+
+    path = lock_path(output)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)  # released by the close below
+    except BlockingIOError:
+        return _holder(path)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return None
+
+
 def _holder(path: Path) -> str:
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)

@@ -186,7 +186,9 @@ def test_run_multipdf_uneven_split_prints_note():
 
 def test_run_kalman_on_linear_gaussian():
     out = _run_json("--model", "linear_gaussian", "--method", "kalman", "--steps", "40")
-    assert out["method"] == "kalman" and out["n_particles"] == 0 and 0 < out["armse"] < 5
+    assert out["method"] == "kalman" and 0 < out["armse"] < 5 and out["ns_per_step"] > 0
+    # no particles: no particle counts, no resampling scheme, no cost per particle
+    assert not {"n_particles", "resampling", "estimate", "n_resampled", "ns_per_particle_step"} & set(out)
 
 
 def test_run_guided_on_pmsm():
@@ -432,6 +434,18 @@ def test_run_truth_and_filter_streams_are_apart_and_out_writes_tidy_steps(tmp_pa
     (["run", "--model", "ob1", "--filters", "2"], "--filters 2 needs --method multipdf"),
     (["run", "--model", "ob1", "--out", "x.txt"], ".csv or .parquet"),
     (["reproduce", "fig5", "--seed", "-1"], "--seed"),
+    (["run", "--model", "ob1", "--out", ""], "'--out': an empty path"),           # wrote nothing, exit 0
+    (["reproduce", "fig5", "--out", ""], "'--out': an empty path"),
+    # options the method cannot use were printed beside results they did not shape
+    (["run", "--model", "linear_gaussian", "--method", "kalman", "--particles", "5", "--dtype", "float32"],
+     "--particles, --dtype cannot apply to --method kalman"),
+    (["run", "--model", "ob1", "--method", "sis", "--resampling", "stratified"],
+     "--resampling cannot apply to --method sis"),
+    (["run", "--model", "ob1", "--param", "q=[1,2]"], "--param q=[1, 2]: expected a number"),  # was "'<=' not supported"
+    (["run", "--model", "ob2", "--param", "q=-1"], "bad parameters for model 'ob2': ob2 needs a variance q > 0"),
+    (["run", "--model", "ob4", "--param", "r=-1"], "bad parameters for model 'ob4'"),  # both blamed transition()
+    (["run", "--model", "ob1", "--models", "m.py"], "--models is an option of pfbench itself"),
+    (["compile", "--model", "ob1", "--method", "nosuch"], "--method 'nosuch' is not one of"),  # said --methods
 ])
 def test_run_and_reproduce_refuse_bad_values_in_one_line(args, needle):
     r = CliRunner().invoke(main, args)

@@ -24,6 +24,7 @@ from pfbench.backends.native_call import caller as _caller
 from pfbench.backends.numba_weights import moments as _moments
 from pfbench.backends.numba_weights import normalised_log_weights as _normalised_log_weights
 from pfbench.backends.numba_weights import weigh as _weigh
+from pfbench.models.contract import RESHAPED as _RESHAPED
 
 
 # ---- what :func:`pfbench.backends.kernels.build` binds for a model and a scheme
@@ -38,6 +39,38 @@ _resample = _b.resample
 _SCHEME = _b.scheme
 _call6 = _caller(6)
 _call7 = _caller(7)
+#: a model's array of another size than in the check: refused (it would broadcast into the particles)
+_RESHAPED_PROPOSAL = "proposal" + _RESHAPED
+_RESHAPED_WEIGHT = "proposal_log_weight" + _RESHAPED
+_RESHAPED_PREDICTIVE = "predictive_log_likelihood" + _RESHAPED
+
+
+@_njit(nogil=True, inline="always")
+def _proposed(x, y, u, t, noise, p):
+    """The model's ``proposal(x, y, u, t, noise, p)``, of the particles' size."""
+    xn = _proposal(x, y, u, t, noise, p)
+    if xn.shape[0] != x.shape[0] or xn.shape[1] != x.shape[1]:
+        raise ValueError(_RESHAPED_PROPOSAL)
+    return xn
+
+
+@_njit(nogil=True, inline="always")
+def _proposal_weights(xn, x, y, u, t, p):
+    """The model's ``proposal_log_weight(xn, x, y, u, t, p)``, one per particle."""
+    ll = _proposal_log_weight(xn, x, y, u, t, p)
+    if ll.shape[0] != x.shape[0]:
+        raise ValueError(_RESHAPED_WEIGHT)
+    return ll
+
+
+@_njit(nogil=True, inline="always")
+def _predictive_weights(y, x, u, t, p):
+    """The model's ``predictive_log_likelihood(y, x, u, t, p)``, one per particle."""
+    ll = _predictive_log_likelihood(y, x, u, t, p)
+    if ll.shape[0] != x.shape[0]:
+        raise ValueError(_RESHAPED_PREDICTIVE)
+    return ll
+
 
 # --------------------------------------------------------------------------- the model's calls
 # A whole run (in a scheme's module) calls the model through these, by address
@@ -47,19 +80,19 @@ _call7 = _caller(7)
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _propose_into(x, y, u, t, noise, p, xn):
     """xn = the model's ``proposal(x, y, u, t, noise, p)``."""
-    xn[:] = _proposal(x, y, u, t, noise, p)
+    xn[:] = _proposed(x, y, u, t, noise, p)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _weight_into(xn, x, y, u, t, p, ll):
     """ll = the model's ``proposal_log_weight(xn, x, y, u, t, p)`` in float64."""
-    ll[:] = _proposal_log_weight(xn, x, y, u, t, p)
+    ll[:] = _proposal_weights(xn, x, y, u, t, p)
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _predictive_into(y, x, u, t, p, ll):
     """ll = the model's ``predictive_log_likelihood(y, x, u, t, p)`` in float64."""
-    ll[:] = _predictive_log_likelihood(y, x, u, t, p)
+    ll[:] = _predictive_weights(y, x, u, t, p)
 
 
 _propose_into = _b.shared("_propose_into", _propose_into)
@@ -71,7 +104,7 @@ _predictive_into = _b.shared("_predictive_into", _predictive_into)
 def _propose(x, y, u, t, noise, p, settings):
     xn = _np.empty_like(x)
     if _SCHEME == -1:  # compile-time constant
-        xn[:] = _proposal(x, y, u, t, noise, p)
+        xn[:] = _proposed(x, y, u, t, noise, p)
     else:
         _call7(_propose_into, settings.propose, x, y, u, t, noise, p, xn)
     return xn
@@ -80,7 +113,7 @@ def _propose(x, y, u, t, noise, p, settings):
 @_njit(nogil=True, inline="always")
 def _weight(xn, x, y, u, t, p, settings):
     if _SCHEME == -1:
-        return _proposal_log_weight(xn, x, y, u, t, p).astype(_np.float64)
+        return _proposal_weights(xn, x, y, u, t, p).astype(_np.float64)
     ll = _np.empty(x.shape[0])
     _call7(_weight_into, settings.weight, xn, x, y, u, t, p, ll)
     return ll
@@ -89,7 +122,7 @@ def _weight(xn, x, y, u, t, p, settings):
 @_njit(nogil=True, inline="always")
 def _predictive(y, x, u, t, p, settings):
     if _SCHEME == -1:
-        return _predictive_log_likelihood(y, x, u, t, p).astype(_np.float64)
+        return _predictive_weights(y, x, u, t, p).astype(_np.float64)
     ll = _np.empty(x.shape[0])
     _call6(_predictive_into, settings.weight, y, x, u, t, p, ll)
     return ll

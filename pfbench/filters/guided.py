@@ -70,6 +70,7 @@ from ..backends.kernels import build
 from ..backends.numpy_backend import valid_log_likelihood, normalised_log_weights, weigh
 from ..errors import InputError, UnsupportedError
 from ..models.base import LOG_2PI, StateSpaceModel
+from ..models.contract import shaped
 from ..resampling import Scheme
 from ..methods import Method, check_backend, check_dtype
 from .inputs import check_inputs, ess_count, seed_sequence
@@ -292,9 +293,21 @@ def numpy_step_optimal(p, rng, particles, y, u, t, settings, moments):
 _NUMPY_STEPS = {"proposal": numpy_step_proposal, "optimal": numpy_step_optimal}
 
 
-def _numpy_calls(fns, kind) -> dict:
-    """The model's two NumPy functions of a ``kind`` as the :class:`Settings` fields ``propose``, ``weight``."""
-    return dict(zip(("propose", "weight"), (fns[name] for name in KINDS[kind])))
+def _numpy_calls(model, fns, kind) -> dict:
+    """The model's two NumPy functions of a ``kind`` as the :class:`Settings` fields ``propose``, ``weight``,
+    each result checked at every step (:func:`~pfbench.models.contract.shaped`): a proposal of another
+    shape would otherwise broadcast into the particles unseen. Both weight functions take the
+    particles second and the step second to last."""
+    propose_name, weight_name = KINDS[kind]
+    propose, weight = fns[propose_name], fns[weight_name]
+
+    def checked_propose(x, y, u, t, noise, p):
+        return shaped(model, propose_name, propose(x, y, u, t, noise, p), x.shape, f"at step {t}")
+
+    def checked_weight(*args):
+        return shaped(model, weight_name, weight(*args), (args[1].shape[0],), f"at step {args[-2]}")
+
+    return {"propose": checked_propose, "weight": checked_weight}
 
 
 # --------------------------------------------------------------- per-step functions for compiled callers
@@ -329,7 +342,7 @@ def step_functions(model_cls) -> StepFunctions:
         return _STEPS[cls]
     kind = proposal_kind(cls)
     fns = _functions(cls)
-    np_step, calls = _NUMPY_STEPS[kind], _numpy_calls(fns, kind)
+    np_step, calls = _NUMPY_STEPS[kind], _numpy_calls(cls, fns, kind)
     module = build("guided", cls)
     kernel_init, kernel_step = module.init, getattr(module, f"step_{kind}")
 
@@ -358,7 +371,7 @@ def step_functions(model_cls) -> StepFunctions:
 # --------------------------------------------------------------------------- whole runs
 def _run_numpy(model, kind, p, rng, y, u, particles, out, settings):
     fns = _functions(type(model))
-    step, settings = _NUMPY_STEPS[kind], settings._replace(**_numpy_calls(fns, kind))
+    step, settings = _NUMPY_STEPS[kind], settings._replace(**_numpy_calls(model, fns, kind))
     numpy_init(fns, p, rng, *particles)
     for t in range(y.shape[0]):
         out.inc[t], out.ess[t], out.resampled[t], out.degen[t] = step(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..clitypes import complete_models, positive_float, positive_int
+from ..clitypes import NonEmptyPath, complete_models, positive_float, positive_int
 from ..methods import PARTICLE_METHODS
 from ..io import to_json
 from ..options import parse_key_values
@@ -33,7 +33,7 @@ def mcu():
               help="Core: m0plus, m3, m4 (the paper's STM32F407), m7, m33.")
 @click.option("--clock-mhz", type=float, default=None, callback=positive_float("clock-mhz"),
               help="Core clock [default: the core's typical chip, 168 MHz for the M4].")
-@click.option("--cycles", "cycles_file", type=click.Path(dir_okay=False), default=None,
+@click.option("--cycles", "cycles_file", type=NonEmptyPath(dir_okay=False), default=None,
               help="Cycle table JSON (default: the core's built-in table).")
 @click.option("--board-power-w", type=float, default=None,
               callback=positive_float("board-power-w", allow_zero=True),
@@ -159,7 +159,7 @@ def fit(model_name, steps, period_us, method, filters, resampling, core_names, p
 
 
 @mcu.command()
-@click.option("--cycles", "cycles_file", type=click.Path(dir_okay=False), default=None)
+@click.option("--cycles", "cycles_file", type=NonEmptyPath(dir_okay=False), default=None)
 @click.option("--json", "as_json", is_flag=True)
 def calibrate(cycles_file, as_json):
     """Fit the per-precision efficiency on [Embedded] Table 2; leave-one-out errors and ratios."""

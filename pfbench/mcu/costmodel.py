@@ -525,17 +525,25 @@ def _step_model(model, n_steps, precision, method, n_filters, resampling, model_
     """Per-step time (us) as a + b N_p from counts at two N_p; the third checks linearity.
     ``basis`` "code": the code layer (a) (``eff`` unused); else ``eff`` x table cycles."""
     m = min(int(n_steps), _FIT_MAX_STEPS)
+    points = fit_points(n_filters)
     us = []
-    for n in _FIT_NP:
+    for n in points:
         nf = int(n_filters)
         counts = count_ops(model, m, n, method, nf, resampling, model_params, code=basis == "code")
         cyc = (float(sum(code_terms(counts, precision, table, m, n).values())) if basis == "code"
                else eff * raw_cycles(counts, precision, table))
         us.append(cycles_to_ms(cyc, clock) * 1e3 / m)
-    b = (us[1] - us[0]) / (_FIT_NP[1] - _FIT_NP[0])
-    a = us[0] - b * _FIT_NP[0]
-    lin = abs(a + b * _FIT_NP[2] - us[2]) / us[2]
+    b = (us[1] - us[0]) / (points[1] - points[0])
+    a = us[0] - b * points[0]
+    lin = abs(a + b * points[2] - us[2]) / us[2]
     return a, b, lin
+
+
+def fit_points(n_filters: int) -> tuple:
+    """The N_p of :func:`_step_model`'s counts: 100, 200 and 400, times the smallest factor that
+    gives each of the N_f sub-filters at least one particle."""
+    k = -(-max(int(n_filters), 1) // _FIT_NP[0])
+    return tuple(k * n for n in _FIT_NP)
 
 
 def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str = "bootstrap",
@@ -562,7 +570,7 @@ def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str
     for p in precisions:
         _check_precision(p)
     mdl = models.get(model, **(model_params or {})) if isinstance(model, str) else model
-    counting._validate(mdl, n_steps, max(_FIT_NP), method, n_filters, resampling)
+    counting._validate(mdl, n_steps, max(fit_points(n_filters)), method, n_filters, resampling)
     key = model if isinstance(model, str) else mdl
     if basis is None:
         basis = "board" if calibrated else "table"

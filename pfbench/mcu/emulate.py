@@ -542,18 +542,16 @@ def predict_cycles(coef: dict, steps: int, particles: int) -> float:
     return coef["fixed"] + coef["per_step"] * steps + coef["per_particle_step"] * steps * particles
 
 
-def analytic(precision: str, steps: int, particles: int, clock_mhz: float) -> dict | None:
-    """The analytic cost model (``pfbench.mcu.costmodel.predict``) if it is importable."""
+def analytic(precision: str, steps: int, particles: int, clock_mhz: float) -> dict:
+    """The analytic cost model's prediction of the same Ob1 run (:func:`pfbench.mcu.costmodel.predict`),
+    or ``{"error": why}`` where it refuses one (e.g. a filter the chip's RAM cannot hold)."""
+    from .costmodel import predict  # noqa: PLC0415
+
     try:
-        from .costmodel import predict  # noqa: PLC0415 - optional sibling module
-    except ImportError:
-        return None
-    try:
-        out = predict(model="ob1", n_steps=steps, n_particles=particles, precision=precision,
-                      method="bootstrap", n_filters=1, clock_mhz=clock_mhz)
-    except Exception as exc:  # noqa: BLE001 - another helper's module: report, don't crash
-        return {"error": f"{type(exc).__name__}: {exc}"}
-    return out if isinstance(out, dict) else {"predicted_ms": float(out)}
+        return predict(model="ob1", n_steps=steps, n_particles=particles, precision=precision,
+                       method="bootstrap", n_filters=1, clock_mhz=clock_mhz)
+    except PfbenchError as exc:
+        return {"error": str(exc)}
 
 
 def _top(d: dict, k: int = 12) -> dict:
@@ -627,7 +625,7 @@ def emulate(precision: str = "float", steps: int = 1000, particles: int = 1000,
         table2.append({"steps": m, "particles": n, "paper_ms": paper[col],
                        "emulated_ms": p["nominal"], "emulated_ms_best": p["best"],
                        "emulated_ms_worst": p["worst"],
-                       "analytic_ms": (an or {}).get("predicted_ms")})
+                       "analytic_ms": an.get("predicted_ms")})
     an = analytic(precision, steps, particles, clock)
     return {
         "precision": precision,
@@ -637,8 +635,8 @@ def emulate(precision: str = "float", steps: int = 1000, particles: int = 1000,
                               "instructions": r.instructions,
                               "cycles": r.cycles["nominal"],
                               "sse": r.result[0]} for r in runs],
-        "analytic": an if an is not None else "pfbench.mcu.costmodel not available",
-        "analytic_ms": (an or {}).get("predicted_ms"),
+        "analytic": an,
+        "analytic_ms": an.get("predicted_ms"),
         "table2": table2,
     }
 

@@ -28,6 +28,16 @@ def _parse_configs(text: str | None):
     return out
 
 
+def _check_fits(spec: str, params: dict, precision: str, steps: int, particles: int, core: str) -> None:
+    """The filter asked for must fit the core's chip, as `mcu estimate` checks: a time predicted for
+    N particles the chip cannot hold answers no question (an InputError with the largest N that fits)."""
+    from .. import models
+    from .costmodel import check_memory
+
+    name, kw = models.parse_spec(spec, params)
+    check_memory(models.get(name, **kw), particles, steps, precision, core=core)
+
+
 @click.command()
 @click.option("--model", "model_name", default=None, metavar="NAME", shell_complete=complete_models,
               help="Run this registered model's OWN compiled code (e.g. ob1, ob3:v4, pmsm) in the "
@@ -69,26 +79,25 @@ def emulate(model_name, params, precision, steps, particles, configs, opt, clock
     --model it runs the model's own compiled code and reports the share of double-precision
     work, RAM, the tracking error and the analytic cost model's prediction beside it.
     """
+    from ..options import parse_key_values
     from . import emulate as E
     from . import toolchain
 
+    if model_name is None and params:
+        raise InputError("--param needs --model")
+    if model_name is None and core != "m4":
+        raise InputError("--core applies to --model runs; the Ob1 port is timed on the M4")
+    steps, particles = steps or (100 if model_name else 1000), particles or (500 if model_name else 1000)
+    kw = parse_key_values(params, "--param")
+    _check_fits(model_name or "ob1", kw, precision, steps, particles, core)
     why = toolchain.missing()
     if why:
         raise PfbenchError("mcu emulate needs the cross toolchain: " + "; ".join(why))
-    if model_name is None and params:
-        raise InputError("--param needs --model")
     if model_name is not None:
-        from ..options import parse_key_values
-
-        res = E.emulate_model(model_name, precision, steps or 100, particles or 500,
-                              configs=_parse_configs(configs), seed=seed, core=core,
-                              params=parse_key_values(params, "--param"), clock_mhz=clock_mhz,
-                              opt=opt, tile=tile)
+        res = E.emulate_model(model_name, precision, steps, particles, configs=_parse_configs(configs), seed=seed,
+                              core=core, params=kw, clock_mhz=clock_mhz, opt=opt, tile=tile)
         _print_model(res, as_json)
         return
-    if core != "m4":
-        raise InputError("--core applies to --model runs; the Ob1 port is timed on the M4")
-    steps, particles = steps or 1000, particles or 1000
     res = E.emulate(precision, steps, particles, configs=_parse_configs(configs),
                     clock_mhz=clock_mhz, seed=seed, opt=opt)
     if as_json:
@@ -108,7 +117,7 @@ def emulate(model_name, params, precision, steps, particles, configs, opt, clock
     click.echo(f"M={steps} N={particles} @ {res['clock_mhz']:.0f} MHz: emulated "
                f"{res['predicted_ms']:.0f} ms (best-worst {res['predicted_ms_range'][0]:.0f}-"
                f"{res['predicted_ms_range'][1]:.0f}); analytic model "
-               + (f"{an:.0f} ms" if an is not None else "n/a (pfbench.mcu.costmodel missing)"))
+               + (f"{an:.0f} ms" if an is not None else f"n/a ({res['analytic'].get('error')})"))
     click.echo("\nTable 2 ([Embedded])      paper ms   emulated ms   (best-worst)      analytic ms")
     for row in res["table2"]:
         a = row["analytic_ms"]

@@ -114,8 +114,12 @@ def run_tool(cmd: list[str], cwd: Path, stdout=None) -> None:
     res = subprocess.run(cmd, cwd=cwd, stdout=stdout or subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, timeout=300)
     if res.returncode != 0:
-        raise PfbenchError(f"cross-compile failed: {' '.join(cmd[:3])}...: "
-                           f"{res.stderr.strip().splitlines()[-1] if res.stderr.strip() else ''}")
+        lines = res.stderr.strip().splitlines()
+        overflow = [line for line in lines if "overflowed by" in line]
+        if overflow:  # the user's sizes (--configs, a large model) do not fit the emulated image
+            raise InputError(f"the emulated image does not fit the chip's memory ({overflow[0].split(': ')[-1]}): "
+                             "emulate fewer particles (--configs) or a smaller model")
+        raise PfbenchError(f"cross-compile failed: {' '.join(cmd[:3])}...: {lines[-1] if lines else ''}")
 
 
 def cache_key(parts) -> str:

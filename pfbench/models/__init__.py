@@ -208,7 +208,8 @@ def check_params(name: str, params: dict, flag: str = "--param") -> dict:
     for k, v in params.items():
         kind, none_ok = _kind(sig[k])
         plain = v is None or type(v) in (str, int, float, bool)
-        if kind is None or kind is str or not plain or (v is None and none_ok):
+        many = isinstance(v, (list, tuple, dict))  # e.g. q=[1,2] for a scalar: refused by typed()
+        if kind is None or kind is str or (not plain and not many) or (v is None and none_ok):
             out[k] = v
             continue
         text = v if isinstance(v, str) else json_text(v)

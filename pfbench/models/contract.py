@@ -55,10 +55,12 @@ RESHAPED = "() returned an array of another shape during the run than in the che
 
 
 def name_of(model) -> str:
-    """The model's name for messages: its registered (or own) ``name``; a subclass that sets none is
-    named by its class, so a user's variant of a built-in model is not taken for the built-in."""
-    own = vars(model).get("name") or type(model).__dict__.get("name")
-    return str(own or type(model).__name__)
+    """The model's (or model class's) name for messages: its registered (or own) ``name``; a subclass
+    that sets none is named by its class, so a user's variant of a built-in model is not taken for the
+    built-in."""
+    cls = model if isinstance(model, type) else type(model)
+    own = (None if model is cls else vars(model).get("name")) or cls.__dict__.get("name")
+    return str(own or cls.__name__)
 
 
 def defined(model) -> set:

@@ -40,8 +40,11 @@ class Ob2(StateSpaceModel):
     state_names = tuple(f"x{i}" for i in range(1, 6))
 
     def __init__(self, q: float = 1.0, r=(6.0, 4.0, 1.0), a: float = 0.5):
+        r = np.asarray(r, dtype=np.float64)
+        if q <= 0 or r.shape != (3,) or np.any(r <= 0):
+            raise ValueError("ob2 needs a variance q > 0 and three variances r > 0 (one per group of five outputs)")
         self.q, self.a = float(q), float(a)
-        self.r = np.repeat(np.asarray(r, dtype=np.float64), 5)
+        self.r = np.repeat(r, 5)
 
     def params(self):
         return (np.sqrt(self.q), self.r, self.a)

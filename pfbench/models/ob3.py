@@ -86,6 +86,8 @@ class Ob3(StateSpaceModel):
             raise InputError("version must be 1..5")
         if pairs not in ("connected", "all"):
             raise InputError("pairs must be 'connected' or 'all'")
+        if q <= 0 or r <= 0:
+            raise InputError("variances q and r must be positive")
         self.version, self.pairs = int(version), pairs
         self.q, self.r, self.a = float(q), float(r), float(a)
         self.mu = np.ones((4, 4))

@@ -36,6 +36,8 @@ class Ob4(StateSpaceModel):
 
     def __init__(self, q: float = 1.0, r: float = 1.0, shared_noise: bool = False,
                  x0=(0.1, 0.1)):
+        if q <= 0 or r <= 0:
+            raise ValueError("variances q and r must be positive")
         self.q, self.r, self.shared = float(q), float(r), bool(shared_noise)
         self.x0 = np.asarray(x0, dtype=np.float64)
 

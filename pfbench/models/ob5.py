@@ -135,6 +135,8 @@ class Ob5(StateSpaceModel):
         self.q_std = np.asarray(q_std, dtype=np.float64).reshape(4)
         self.r_std = np.asarray(r_std, dtype=np.float64).reshape(2)
         self.p0_std = np.asarray(p0_std, dtype=np.float64).reshape(4)
+        if np.any(self.q_std < 0) or np.any(self.p0_std < 0) or np.any(self.r_std <= 0):
+            raise ValueError("standard deviations must be >= 0 (r_std > 0)")
         self.x1_ref, self.u2 = float(x1_ref), float(np.clip(u2, U_MIN, U_MAX))
         self.kp, self.kd, self.kc = float(kp), float(kd), float(kc)
         x4 = float(np.clip(KI * self.u2 + CI, I_MIN, I_MAX))

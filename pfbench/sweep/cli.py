@@ -14,7 +14,7 @@ from pathlib import Path
 import click
 
 from ..errors import DataError, InputError
-from ..clitypes import OUT_FILE, ChoiceList, complete_models
+from ..clitypes import OUT_FILE, ChoiceList, NonEmptyPath, complete_models
 from ..methods import BACKENDS, ESTIMATES, METHODS
 from ..options import check_known, comma_list, parse_key_values, typed
 
@@ -60,7 +60,7 @@ def _grid_file(path: str) -> dict:
 
 
 _OPTIONS = [
-    click.option("--grid", "grid", type=click.Path(dir_okay=False), default=None,
+    click.option("--grid", "grid", type=NonEmptyPath(dir_okay=False), default=None,
                  help="YAML/TOML file with any of these options (command-line options win)."),
     click.option("--model", default=None, shell_complete=complete_models,
                  help="Model, optionally with a variant: ob1, ob3:v4 (`pfbench models` lists them)."),
@@ -194,7 +194,12 @@ def summarize_cmd(store, as_json, plot):
     from .core import model_label
     from .summary import plot_summary, summarize_frame, throughput
 
+    from ..procs import writer_of
+
     frame, spec, chunks = load_frame(store)
+    writer = writer_of(store)
+    if writer:
+        click.echo(f"# note: {store} is being written by {writer}: these are the runs done so far", err=True)
     summ = summarize_frame(frame, spec)
     tp = throughput(chunks, len(frame))
     if as_json:

@@ -96,3 +96,36 @@ def test_estimate_basis_selects_the_layer():
     assert out["code"]["predicted_ms"] == out["code"]["code_ms"] == out["board"]["code_ms"]
     assert out["table"]["predicted_ms"] == out["table"]["raw_ms"]
     assert len({round(o["predicted_ms"], 6) for o in out.values()}) == 3
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--particles", "100000000"], "but the STM32F407 has 192 kB"),            # the Ob1 port: a time was printed
+    (["--model", "ob1", "--particles", "10000", "--core", "m0plus"], "but the STM32G071RB has 36 kB"),
+])
+def test_emulate_refuses_a_filter_the_chip_cannot_hold(args, needle):
+    """`mcu emulate` extrapolated a time for any N, one no chip of the core could hold (as
+    `mcu estimate` refuses). Checked before the toolchain, so it holds without one."""
+    r = _run(["emulate", *args])
+    assert r.exit_code == 2 and needle in r.output and "largest N_p that fits" in r.output, r.output
+
+
+def test_a_linker_memory_overflow_names_the_sizes(tmp_path):
+    """The linker's "region `RAM' overflowed" was reported as "cross-compile failed: ... collect2:
+    error: ld returned 1 exit status". Catches the overflow line not picked out."""
+    from pfbench.errors import InputError
+    from pfbench.mcu.toolchain import run_tool
+
+    ld = "echo \"ld: region \\`RAM' overflowed by 230284 bytes\" >&2; echo 'collect2: error' >&2; exit 1"
+    with pytest.raises(InputError, match="overflowed by 230284 bytes.*--configs"):
+        run_tool(["sh", "-c", ld], tmp_path)
+
+
+def test_fit_with_more_sub_filters_than_the_counted_particles():
+    """The fit counted operations at N_p = 100, 200, 400 whatever N_f, so N_f > 100 failed with
+    "n_filters cannot exceed n_particles"; the points now scale with N_f. Catches the fixed points."""
+    assert cm.fit_points(1) == (100, 200, 400) and cm.fit_points(101) == (200, 400, 800)
+    r = _run(["fit", "--method", "multipdf", "--filters", "101", "--period-us", "100000", "--core", "m4",
+              "--precision", "float", "--json"])
+    assert r.exit_code == 0, r.output
+    row, = json.loads(r.stdout)["rows"]
+    assert row["max_particles"] >= 101

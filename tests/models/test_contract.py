@@ -418,6 +418,37 @@ def test_guided_code_numba_cannot_compile_is_named():
     assert "model 'weightcallstheclass': numba cannot compile proposal_log_weight()" in str(err.value)
 
 
+class LateNarrowProposal(Guided):
+    name = "latenarrowproposal"
+
+    @staticmethod
+    def proposal(x_prev, y, u, t, noise, p):
+        out = 0.9 * x_prev + noise
+        return out[:1] if t >= 3 else out       # one row: broadcast into every particle
+
+
+class LateShortWeight(Guided):
+    name = "lateshortweight"
+
+    @staticmethod
+    def proposal_log_weight(x, x_prev, y, u, t, p):
+        out = -0.5 * (y[0] - x[:, 0]) ** 2
+        return out[:1] if t >= 3 else out
+
+
+@pytest.mark.parametrize("model, fn, shape", [(LateNarrowProposal(), "proposal", "(8, 1), got shape (1, 1)"),
+                                              (LateShortWeight(), "proposal_log_weight", "(8,), got shape (1,)")])
+def test_a_guided_shape_that_changes_after_the_check_is_named(model, fn, shape):
+    """The guided filter assigned the model's arrays into its own, so a one-row result broadcast
+    to every particle and the run printed normal results on both backends. Catches either
+    backend's per-step check dropped."""
+    for backend, says in (("numpy", f"{fn}() must return a float array of shape {shape} of float64 (at step 3)"),
+                          ("numba", f"{fn}() returned an array of another shape during the run")):
+        with pytest.raises(InputError) as err:
+            pfbench.run_filter(model, np.zeros((6, 1)), method="guided", n_particles=8, backend=backend)
+        assert str(err.value).startswith(f"model {model.name!r}: {says}"), (backend, err.value)
+
+
 class NoLoglik(Good):
     name = "nologlik"
     log_likelihood = StateSpaceModel.log_likelihood     # as a marginalized-PF-only model has it

@@ -75,6 +75,14 @@ def test_cli_run_on_log_and_bad_log(tmp_path):
                                   "--backend", "numpy", "--json"])
     assert r.exit_code == 0, r.output
     assert '"n_steps": ' in r.output
+    good = _write(tmp_path, GOOD, "good.csv")
+    args = ["run", "--model", "thermal_inertial", "--data", str(good), "--particles", "20", "--backend", "numpy"]
+    r = CliRunner().invoke(main, [*args, "--steps", "2", "--json"])   # the log's first M rows
+    assert r.exit_code == 0 and '"n_steps": 2,' in r.output, r.output
+    r = CliRunner().invoke(main, [*args, "--steps", "4"])               # was ignored
+    assert r.exit_code == 2 and "4 steps, but" in r.output and "has 3 rows" in r.output, r.output
+    r = CliRunner().invoke(main, [*args, "--truth-seed", "3"])         # nothing is simulated
+    assert r.exit_code == 2 and "--truth-seed" in r.output, r.output
     bad = _write(tmp_path, GOOD.replace("\n2,", "\n0.5,"))
     r = CliRunner().invoke(main, ["run", "--model", "thermal_inertial", "--data", str(bad), "--backend", "numpy"])
     assert r.exit_code == 2

@@ -233,6 +233,12 @@ def test_summarize_cli(tmp_path):
     assert {d["model"] for d in data} == {"ob3:v2"} and set(load_frame(out)[0]["model"]) == {"ob3:v2"}
     assert all(d["runs"] == 3 and d["armse_lo"] <= d["armse_mean"] <= d["armse_hi"] for d in data)
     assert Path(str(out) + ".summary.png").is_file()
+    assert "being written" not in r.output
+    from pfbench.procs import exclusive_lock
+
+    with exclusive_lock(out, "test"):   # a sweep writing the store: what it has so far, said so
+        r = CliRunner().invoke(main, ["sweep", "summarize", str(out), "--no-plot"])
+    assert r.exit_code == 0 and f"is being written by PID {os.getpid()}" in r.output, r.output
     r = CliRunner().invoke(main, ["sweep", "summarize", str(tmp_path / "nope.jsonl")])
     assert r.exit_code == 2 and "does not exist" in r.output
     r = CliRunner().invoke(main, ["sweep", "summarize", str(tmp_path)])   # a folder: not "does not exist"
