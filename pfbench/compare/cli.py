@@ -23,8 +23,8 @@ from ..errors import PfbenchError
 @click.option("--particles", "n_particles", type=int, default=1000, show_default=True, help="N_p.")
 @click.option("--baseline", default=None, help="Contender the others are paired against (default: the first).")
 @click.option("--timeout", "timeout_s", type=float, default=None,
-              help="Seconds one run of an external (cmd:, out-of-process particles:) contender may take; "
-                   "pfbench: and py: contenders run in this process, with no limit.")
+              help="Seconds one run of an external (cmd:, out-of-process particles:) contender may take "
+                   "(default 600); pfbench: and py: contenders run in this process, with no limit.")
 @click.option("--out", "out_dir", **OUT_DIR, default=None,
               help="Write leaderboard.md, compare.json, <task>.png and the resumable journal here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object.")

@@ -62,8 +62,11 @@ PROTOCOL = {
               "y": "M x n_y list", "u": "M x n_u list or null", "n_particles": "int", "seed": "int",
               "n_x": "int", "steps": "int"},
     "stdout": {"estimates": "M x n_x list (required)", "loglik": "number or null",
-               "variances": "M x n_x list (optional)", "elapsed_s": "own filtering time (optional)"},
+               "variances": "M x n_x list (optional)", "elapsed_s": "own filtering time (optional)",
+               "n_particles": "particles actually used, if not n_particles; 0: none (optional)"},
 }
+#: the keys a contender's output may give (a mapping's other keys are its own, and ignored)
+OUTPUT_KEYS = tuple(PROTOCOL["stdout"])
 PREFIXES = ("pfbench", "py", "cmd", "particles", "filterpy")
 PFBENCH_KEYS = {"resampling": str, "filters": int, "backend": str, "ess_threshold": float,
                 "dtype": str, "threads": int}
@@ -102,7 +105,7 @@ def normalise(raw, n_steps: int, n_x: int, wall_s: float) -> Output:
     from ..filters.result import FilterResult
 
     if isinstance(raw, FilterResult):
-        return Output(np.asarray(raw.estimates, dtype=float), float(raw.loglik),
+        return Output(np.asarray(raw.estimates, dtype=float), checked_loglik(float(raw.loglik)),
                       np.asarray(raw.variances, dtype=float), wall_s, float(raw.elapsed_s),
                       n_particles=int(raw.n_particles))
     if not isinstance(raw, dict) and hasattr(raw, "keys") and hasattr(raw, "__getitem__"):
@@ -110,6 +113,12 @@ def normalise(raw, n_steps: int, n_x: int, wall_s: float) -> Output:
     if not isinstance(raw, dict):
         raise RunFailed(f"malformed output: expected a FilterResult or a mapping with 'estimates', "
                         f"got {type(raw).__name__}")
+    import difflib
+
+    for key in raw:  # a misspelled key was an output silently left out
+        near = difflib.get_close_matches(str(key), OUTPUT_KEYS, n=1, cutoff=0.75)
+        if key not in OUTPUT_KEYS and near:
+            raise RunFailed(f"malformed output: unknown key {key!r} (did you mean {near[0]!r}?)")
     if "estimates" not in raw:
         raise RunFailed("malformed output: no 'estimates'")
 
@@ -128,16 +137,38 @@ def normalise(raw, n_steps: int, n_x: int, wall_s: float) -> Output:
     if not np.all(np.isfinite(est)):
         raise RunFailed(f"non-finite estimates ({int((~np.isfinite(est)).sum())} entries)")
     var = arr("variances") if raw.get("variances") is not None else None
-    ll = raw.get("loglik")
+    if var is not None and not np.all(np.isfinite(var) & (var >= 0)):
+        raise RunFailed(f"malformed output: {int((~(np.isfinite(var) & (var >= 0))).sum())} variances are "
+                        "negative or not finite")
+    ll = _number(raw, "loglik")
     if ll is not None:
-        if isinstance(ll, bool) or not isinstance(ll, (int, float, np.floating, np.integer)):
-            raise RunFailed(f"malformed output: 'loglik' must be a number or null, got {ll!r:.40}")
-        ll = float(ll)
-    own = raw.get("elapsed_s")
-    own = float(own) if isinstance(own, (int, float)) and not isinstance(own, bool) and own >= 0 else None
-    n_p = raw.get("n_particles")
-    n_p = int(n_p) if isinstance(n_p, int) and not isinstance(n_p, bool) and n_p >= 0 else None
-    return Output(est, ll, var, wall_s, own, n_particles=n_p)
+        ll = checked_loglik(ll)
+    own = _number(raw, "elapsed_s")
+    if own is not None and not 0.0 <= own <= wall_s:  # a time the call cannot have taken
+        raise RunFailed(f"malformed output: 'elapsed_s' {own:g} s is not within the call's {wall_s:.3g} s")
+    n_p = _number(raw, "n_particles")
+    if n_p is not None and not (n_p == int(n_p) and n_p >= 0):  # 0: a filter without particles
+        raise RunFailed(f"malformed output: 'n_particles' must be an integer >= 0, got {n_p:g}")
+    return Output(est, ll, var, wall_s, own, n_particles=None if n_p is None else int(n_p))
+
+
+def _number(raw: dict, key: str) -> float | None:
+    """``raw[key]`` as a float, None when absent or null; any other type is a malformed output."""
+    v = raw.get(key)
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+        raise RunFailed(f"malformed output: {key!r} must be a number or null, got {v!r:.40}")
+    return float(v)
+
+
+def checked_loglik(ll: float) -> float:
+    """A run's log-likelihood; NaN or -inf is a failed run (it was left out of the means unseen, so a
+    filter that collapsed on a hard run looked better than one that did not)."""
+    if not np.isfinite(ll):
+        why = "every particle weight zero at some step" if ll == -np.inf else "not a number"
+        raise RunFailed(f"log-likelihood {ll} ({why})")
+    return ll
 
 
 # --------------------------------------------------------------------------- contenders
@@ -230,6 +261,10 @@ def _load_py(target: str, spec: str):
             except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's code (sys.exit too): one line
                 raise InputError(f"--contender {spec}: {target} failed to import: {exc_reason(exc)}") from None
         return _PY_MODULES[key]
+    import sys
+
+    if os.getcwd() not in sys.path:  # a module of the current folder, as `python -m` finds it
+        sys.path.append(os.getcwd())
     try:
         return importlib.import_module(target)
     except Exception as exc:  # noqa: BLE001
@@ -249,7 +284,8 @@ class PyContender(Contender):
         mod = _load_py(self.target, self.spec)
         f = getattr(mod, self.func_name, None)
         if not callable(f):
-            raise InputError(f"--contender {self.spec}: {self.target} has no function {self.func_name!r}")
+            where = getattr(mod, "__file__", None) or "built in"
+            raise InputError(f"--contender {self.spec}: {self.target} ({where}) has no function {self.func_name!r}")
         return f
 
     def __getstate__(self):
@@ -263,20 +299,31 @@ class PyContender(Contender):
 
     def warm_up(self, task, model, traj):
         try:
-            self.func(model, traj.y[:2], None if traj.u is None else traj.u[:2], n_particles=2, seed=0)
+            with _prints_to_stderr():
+                self.func(model, traj.y[:2], None if traj.u is None else traj.u[:2], n_particles=2, seed=0)
         except (Exception, SystemExit):  # noqa: BLE001 - the timed runs report it
             pass
 
     def run(self, task, model, y, u, *, n_particles, seed, timeout):
         t0 = time.perf_counter()
         try:
-            raw = self.func(model, y, u, n_particles=n_particles, seed=seed)
+            with _prints_to_stderr():
+                raw = self.func(model, y, u, n_particles=n_particles, seed=seed)
         except RunFailed:
             raise
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's code (sys.exit too): a failed run
             raise RunFailed(exc_reason(exc)) from None
         wall = time.perf_counter() - t0
         return normalise(raw, y.shape[0], model.n_x, wall)
+
+
+def _prints_to_stderr():
+    """What a ``py:`` contender prints goes to standard error: standard output carries the
+    comparison's own output (``--json``)."""
+    import contextlib
+    import sys
+
+    return contextlib.redirect_stdout(sys.stderr)
 
 
 def request(task, model, y, u, n_particles: int, seed: int) -> dict:
@@ -303,25 +350,43 @@ class CmdContender(Contender):
         self._startup: dict = {}
 
     def _call(self, payload: dict, timeout: float | None):
+        """Run the program once on ``payload``: (its JSON output, wall time). It runs in a session of
+        its own, so a timeout (``DEFAULT_TIMEOUT_S`` unless given) ends the processes it started too
+        (they ran on, orphaned, and slowed later runs); output that is not UTF-8 is read with
+        replacement characters."""
+        import signal
+
         text = json.dumps(payload, allow_nan=False)
         env = None if self.env is None else {**os.environ, **self.env}
+        timeout = DEFAULT_TIMEOUT_S if timeout is None else timeout
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run(self.argv, input=text, capture_output=True, text=True,
-                                  timeout=timeout, env=env)
-        except subprocess.TimeoutExpired:
-            raise RunFailed(f"timed out after {timeout:g} s") from None
+            proc = subprocess.Popen(self.argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    text=True, encoding="utf-8", errors="replace", env=env, start_new_session=True)
         except OSError as exc:
             raise RunFailed(f"cannot start {self.argv[0]}: {exc.strerror or exc}") from None
+        try:
+            stdout, stderr = proc.communicate(text, timeout=timeout)
+        except BaseException as exc:  # a timeout, or Ctrl-C, which a program in its own session does not get
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except OSError:
+                pass
+            proc.communicate()
+            if isinstance(exc, subprocess.TimeoutExpired):
+                raise RunFailed(f"timed out after {timeout:g} s") from None
+            raise
         wall = time.perf_counter() - t0
         if proc.returncode != 0:
-            last = (proc.stderr.strip().splitlines() or [""])[-1]
-            raise RunFailed(one_line(f"exit code {proc.returncode}" + (f": {last}" if last else "")))
+            last = (stderr.strip().splitlines() or [""])[-1]
+            code = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
+                    else f"exit code {proc.returncode}")
+            raise RunFailed(one_line(code + (f": {last}" if last else "")))
         try:
-            out = json.loads(proc.stdout)
+            out = json.loads(stdout)
         except ValueError:
             raise RunFailed(one_line(f"malformed output: stdout is not one JSON object "
-                                     f"({proc.stdout.strip()[:60]!r})")) from None
+                                     f"({stdout.strip()[:60]!r})")) from None
         return out, wall
 
     def startup(self, task, model, traj, n_particles: int, timeout: float | None) -> float:

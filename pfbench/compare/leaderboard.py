@@ -1,10 +1,13 @@
 """The leaderboard of a comparison: ``leaderboard.md``, ``compare.json`` and one accuracy-vs-time
 plot per task (``<task>.png``), all written atomically (:mod:`pfbench.io`).
 
-Ranking: on a task with true states by mean aRMSE (lower first); on real data by the standard
-deviation of the log-likelihood estimate over runs (lower first: the quantity a PMMH user tunes
-N_p by). A contender that failed a run is ranked after every complete one and its failures are
-listed under the table with their reasons.
+Ranking: on a task with true states by mean aRMSE (lower first); on real data, where no state is
+known, by the mean log-likelihood estimate (higher first). A particle filter's likelihood estimate
+is unbiased, so its log falls short of the true log-likelihood by about half its variance (Jensen):
+of two such filters the one with the higher mean is the one nearer the truth, and its smaller
+spread (the quantity a PMMH user tunes N_p by) shows beside it. The spread alone is no ranking: a
+filter that returns one wrong value every run has none. A contender without a log-likelihood, or
+that failed a run, is not ranked (``–``; the failures are listed under the table with their reasons).
 """
 from __future__ import annotations
 
@@ -19,22 +22,35 @@ def _ci(v, fmt=".3g"):
     return "" if not v else f" [{format(v[0], fmt)}, {format(v[1], fmt)}]"
 
 
-def accuracy_key(task: dict) -> tuple[str, str]:
-    """(metric, label) that ranks a task's contenders."""
+def accuracy_key(task: dict) -> tuple[str, str, int]:
+    """(metric, label, sign) that ranks a task's contenders: the smaller ``sign * metric`` first."""
     if task["data"] == "real":
-        return "loglik_sd", "sd of log-likelihood"
-    return "armse", "aRMSE"
+        return "loglik", "mean log-likelihood (higher first)", -1
+    return "armse", "aRMSE", 1
+
+
+def ranked(task: dict, name: str) -> bool:
+    """Whether a contender has a rank: it completed every run and has the ranking metric."""
+    s = task["contenders"][name]
+    return s["complete"] and s.get(accuracy_key(task)[0]) is not None
 
 
 def _rank(task: dict) -> list[str]:
-    key, _ = accuracy_key(task)
+    key, _, sign = accuracy_key(task)
 
     def order(item):
         name, s = item
-        v = s.get(key)
-        return (not s["complete"], v is None, v if v is not None else 0.0, name)
+        return (not ranked(task, name), sign * s[key] if ranked(task, name) else 0.0, name)
 
     return [n for n, _ in sorted(task["contenders"].items(), key=order)]
+
+
+def _delta(task: dict, name: str, key: str) -> str:
+    """The paired difference of ``key`` against the baseline, as a cell."""
+    d = (task["contenders"][name].get("vs_baseline") or {}).get(key)
+    if name == task["baseline"]:
+        return "baseline"
+    return "—" if d is None else f"{d['mean']:+.3g}{_ci(d['ci'])} {d['verdict']} (n = {d['n']})"
 
 
 def markdown(summary: dict) -> str:
@@ -46,7 +62,7 @@ def markdown(summary: dict) -> str:
              "mean of log L̂ - log L against the exact value, about -var/2 for an unbiased L̂; "
              "L̂/L: its mean, 1 for an unbiased filter.", ""]
     for tname, t in summary["tasks"].items():
-        key, label = accuracy_key(t)
+        key, label, _ = accuracy_key(t)
         exact = t["reference"] == "exact-loglik"
         lines += [f"## {tname}", "",
                   f"model `{t['model']}`, {t['steps']} steps, {t['data']} data"
@@ -56,21 +72,22 @@ def markdown(summary: dict) -> str:
         if t["data"] != "real":
             head += ["aRMSE [95 %]", "Δ aRMSE vs baseline [95 %]", "cov. 90 %"]
         head += ["log-lik mean", "log-lik sd"]
+        if t["data"] == "real":
+            head += ["Δ log-lik vs baseline [95 %]"]
         if exact:
             head += ["log-lik bias [95 %]", "L̂/L [95 %]"]
         head += ["ns / particle-step", "runs ok / failed"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for i, name in enumerate(_rank(t), 1):
             s = t["contenders"][name]
-            row = [str(i) if s["complete"] else "–", f"`{name}`"]
+            row = [str(i) if ranked(t, name) else "–", f"`{name}`"]
             if t["data"] != "real":
-                d = (s.get("vs_baseline") or {}).get("armse")
-                dtxt = "baseline" if name == t["baseline"] else (
-                    "—" if d is None else f"{d['mean']:+.3g}{_ci(d['ci'])} {d['verdict']}")
                 cov = s.get("coverage90")
-                row += [_f(s["armse"]) + _ci(s["armse_ci"]), dtxt,
+                row += [_f(s["armse"]) + _ci(s["armse_ci"]), _delta(t, name, "armse"),
                         "—" if cov is None else f"{100 * cov:.0f} %"]
             row += [_f(s["loglik"], ".6g"), _f(s["loglik_sd"], ".3g")]
+            if t["data"] == "real":
+                row += [_delta(t, name, "loglik")]
             if exact:
                 row += [_f(s.get("loglik_bias"), ".3g") + _ci(s.get("loglik_bias_ci")),
                         _f(s.get("lik_ratio"), ".3g") + _ci(s.get("lik_ratio_ci"))]
@@ -101,18 +118,18 @@ def pareto(points: list[tuple[float, float]]) -> list[int]:
 
 
 def plot_task(tname: str, task: dict):
-    """Accuracy (aRMSE with its 95 % interval, or sd of the log-likelihood) vs the filter's own
-    time per run, with the Pareto front."""
+    """Accuracy (aRMSE, or the mean log-likelihood on real data, with its 95 % interval) vs the
+    filter's own time per run, with the Pareto front."""
     from ..plotting import OURS, PAPER, label, subplots
 
-    key, ylabel = accuracy_key(task)
+    key, ylabel, sign = accuracy_key(task)
     fig, ax = subplots(figsize=(5.2, 3.6))
     pts, names = [], []
     for name, s in task["contenders"].items():
         if s.get(key) is None or not s.get("own_s"):
             continue
         x, y = s["own_s"], s[key]
-        ci = s.get("armse_ci") if key == "armse" else None
+        ci = s.get(f"{key}_ci")
         yerr = [[y - ci[0]], [ci[1] - y]] if ci else None
         ax.errorbar([x], [y], yerr=yerr, fmt="o", ms=5, capsize=3,
                     color=OURS if s["complete"] else "grey")
@@ -120,7 +137,7 @@ def plot_task(tname: str, task: dict):
         pts.append((x, y))
         names.append(name)
     if pts:
-        front = pareto(pts)
+        front = pareto([(x, sign * y) for x, y in pts])
         ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "--", color=PAPER, lw=1,
                 label="Pareto front")
         ax.legend(loc="best")

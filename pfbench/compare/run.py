@@ -61,15 +61,20 @@ def make_spec(task_names, contender_texts, *, runs: int = 10, n_particles: int =
 
 
 def _code_fingerprint(contenders) -> str:
-    """pfbench's package fingerprint plus the sources of py: contenders (a changed contender
-    file starts a new journal instead of mixing runs of two versions)."""
+    """pfbench's package fingerprint plus the sources of the contenders: a py: file, and the files a
+    cmd: line names (its script; a changed one was reused silently). A changed contender is
+    refused on resume instead of mixing runs of two versions."""
+    import os
+
     from ..backends.cache import package_fingerprint
 
     h = hashlib.sha256(package_fingerprint().encode())
     for c in contenders:
-        if c.kind == "py" and c.target.endswith(".py"):
+        files = [c.target] if c.kind == "py" and c.target.endswith(".py") else [
+            a for a in getattr(c, "argv", []) if os.sep in a or a.endswith(".py")]
+        for path in files:
             try:
-                with open(c.target, "rb") as f:
+                with open(path, "rb") as f:
                     h.update(f.read())
             except OSError:
                 pass
@@ -117,9 +122,18 @@ def warm_up(spec: dict) -> None:
         task = tasks[tname]
         model, traj, u, _ = _dataset(spec, task, 0)
         try:
-            conts[cname].warm_up(task, model, traj)
+            conts[cname].warm_up(task, *_own_copies(model, traj))
         except Exception:  # noqa: BLE001 - the timed runs report what is wrong
             pass
+
+
+def _own_copies(model, *arrays):
+    """A contender's own copies of the model and the data: one that changed them in place (``y[:] =
+    0``, ``model.R *= 100``) changed every later contender's data and the reference it is scored
+    against, unseen."""
+    import copy
+
+    return (copy.deepcopy(model), *(a if a is None else copy.deepcopy(a) for a in arrays))
 
 
 def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
@@ -137,9 +151,10 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         rec = {"key": f"{ci}:{run}", "config": int(ci), "run": int(run), "task": tname,
                "contender": cname, "seed": seed, "n_particles": n_p, "ok": False, "reason": None}
         startup = None
+        own_model, own_y, own_u = _own_copies(model, traj.y, u)
         t0 = time.perf_counter()
         try:
-            res = cont.run(task, model, traj.y, u, n_particles=n_p, seed=seed,
+            res = cont.run(task, own_model, own_y, own_u, n_particles=n_p, seed=seed,
                            timeout=spec.get("timeout_s"))
         except RunFailed as exc:
             rec["reason"] = str(exc)
@@ -149,16 +164,17 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
             rec["reason"] = exc_reason(exc)
         else:
             own = res.own_s
-            if hasattr(cont, "startup"):  # an external program: its start-up is reported apart
-                if own is not None:
-                    startup = max(0.0, res.wall_s - own)
-                else:
-                    t1 = time.perf_counter()
-                    startup = cont.startup(task, model, traj, n_p, spec.get("timeout_s"))
-                    t0 += time.perf_counter() - t1  # the probe is not the compare's overhead
-                    own = res.wall_s if not np.isfinite(startup) else max(0.0, res.wall_s - startup)
-            if own is None:
-                own = res.wall_s
+            if not hasattr(cont, "startup"):
+                own = res.wall_s if own is None else own
+            elif own is not None:  # an external program: its start-up is reported apart
+                startup = res.wall_s - own
+            else:
+                t1 = time.perf_counter()
+                startup = cont.startup(task, model, traj, n_p, spec.get("timeout_s"))
+                t0 += time.perf_counter() - t1  # the probe is not the compare's overhead
+                # a run no longer than the start-up probes has no time of its own (it was 0 ns)
+                own = res.wall_s if not np.isfinite(startup) else (
+                    res.wall_s - startup if res.wall_s > startup else None)
             has_truth = bool(np.all(np.isfinite(traj.x)))
             r = rmse(res.estimates, traj.x) if has_truth else None
             cov = None
@@ -170,7 +186,7 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
                        rmse=None if r is None else [float(v) for v in r],
                        loglik=res.loglik, coverage90=cov, wall_s=res.wall_s, own_s=own,
                        startup_s=startup, n_particles_used=int(n_eff),
-                       ns_per_particle_step=own * 1e9 / (max(1, n_eff) * traj.n_steps))
+                       ns_per_particle_step=None if own is None else own * 1e9 / (max(1, n_eff) * traj.n_steps))
             if ref is not None:
                 rec["loglik_ref"] = ref[0]
                 rec["loglik_error"] = None if res.loglik is None else res.loglik - ref[0]
@@ -182,10 +198,13 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
 
 def run_compare(spec: dict, journal, *, workers: int = 1, executor: str = "local",
                 scheduler: str | None = None, progress: bool = True, overwrite: bool = False):
-    """Run (or resume) ``spec`` into the journal ``journal`` (.jsonl); returns the records."""
+    """Run (or resume) ``spec`` into the journal ``journal`` (.jsonl); returns the records. The
+    baseline is not part of the journal's spec: it only pairs the results, so another ``--baseline``
+    resumes the same runs."""
     from ..sweep.runner import run_sweep
     from ..sweep.store import Store
 
+    spec = {k: v for k, v in spec.items() if k != "baseline"}
     run_sweep(spec, journal, workers=workers, executor=executor, scheduler=scheduler,
               progress=progress, overwrite=overwrite)
     return list(Store.read(journal).records.values())

@@ -4,6 +4,9 @@ Intervals are 95 % t-intervals of a mean over runs (:func:`pfbench.verdicts.t_in
 rule of the scorecard). A paired difference (contender - baseline) uses only the runs on which
 both completed; its verdict is ``lower`` / ``higher`` when the whole interval lies below / above
 zero and ``no difference at 95 %`` when it contains zero (the scorecard's :func:`direction` rule).
+A difference within floating-point rounding of the values (:data:`ROUNDING`, relative) is zero: two
+builds of one filter differ in the last bits, and a zero-width interval of such differences read
+as a significant "lower"; when every paired difference is zero the verdict is ``identical``.
 
 Log-likelihood against an exact reference: ``loglik_bias`` is the mean of log L_hat - log L and
 ``loglik_variance`` its variance over runs. A particle filter's likelihood estimate L_hat is
@@ -18,7 +21,10 @@ import numpy as np
 
 from ..verdicts import t_interval
 
-LOWER, HIGHER, SAME = "lower", "higher", "no difference at 95 %"
+LOWER, HIGHER, SAME, IDENTICAL = "lower", "higher", "no difference at 95 %", "identical within rounding"
+#: relative size of a difference taken for rounding (float64 results of one algorithm on two backends
+#: or builds agree to about 1e-15 relative; 1e-9 leaves room for summation orders over long runs)
+ROUNDING = 1e-9
 
 
 def _vals(recs, key):
@@ -39,14 +45,16 @@ def _ci(x):
 def paired(a: dict, b: dict, key: str) -> dict | None:
     """The paired difference of ``key`` between runs ``a`` and ``b`` ({run: record}), or None."""
     runs = sorted(set(a) & set(b))
-    d = np.array([float(a[r][key]) - float(b[r][key]) for r in runs
-                  if a[r].get(key) is not None and b[r].get(key) is not None], dtype=float)
-    d = d[np.isfinite(d)]
+    pairs = np.array([(float(a[r][key]), float(b[r][key])) for r in runs
+                      if a[r].get(key) is not None and b[r].get(key) is not None], dtype=float).reshape(-1, 2)
+    pairs = pairs[np.all(np.isfinite(pairs), axis=1)]
+    d = pairs[:, 0] - pairs[:, 1]
+    d[np.abs(d) <= ROUNDING * np.abs(pairs).max(axis=1, initial=0.0)] = 0.0
     ti = t_interval(d)
     if ti is None:
         return None
     mean, lo, hi, n = ti
-    verdict = LOWER if hi < 0 else HIGHER if lo > 0 else SAME
+    verdict = IDENTICAL if not d.any() else LOWER if hi < 0 else HIGHER if lo > 0 else SAME
     return {"mean": mean, "ci": [lo, hi], "n": n, "verdict": verdict}
 
 

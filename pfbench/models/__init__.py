@@ -140,7 +140,12 @@ def loaded_files() -> list[str]:
 def import_path(name: str, path: str):
     """Import the file ``path`` as the module ``name`` (kept in ``sys.modules``, so worker
     processes can find its objects again); on failure the module is removed and the exception
-    propagates. User model files and ``py:`` contenders are imported this way."""
+    propagates. User model files and ``py:`` contenders are imported this way. The file's folder is
+    put on ``sys.path`` (last, so it shadows nothing), so the file imports its neighbours as it
+    does when run as a script."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if folder not in sys.path:
+        sys.path.append(folder)
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module

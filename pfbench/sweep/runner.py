@@ -393,6 +393,21 @@ def _warm(spec: dict) -> None:
         _WARM.add(h)
 
 
+def _warm_quietly(spec: dict) -> None:
+    """A local worker's initializer: :func:`_warm`, whose failure is left to the worker's first unit
+    to raise (it runs :func:`_warm` again). A failing initializer breaks the whole pool, and its
+    exception reached the parent only as "a worker process died"."""
+    try:
+        _warm(spec)
+    except Exception:  # noqa: BLE001 - raised again, and reported, by the unit
+        pass
+
+
+#: what a worker that cannot find a name lacks (it is a fresh interpreter, ``spawn``)
+SPAWN_HINT = ("; the worker processes start afresh, so tasks, models and contenders defined in a script's "
+              "__main__ or a notebook do not exist there: define them in a module or a --models file")
+
+
 def _threads() -> int:
     """The most threads a filter of this process can run: numba's pool size, within the process's
     thread budget (:func:`pfbench.procs.thread_limit`)."""
@@ -499,8 +514,12 @@ def _run_local(spec, planner, workers, done, max_units):
         except MemoryError:
             raise PfbenchError("a sweep worker ran out of memory; finished tasks are saved; use "
                                "fewer --workers or smaller --particles, then re-run to resume") from None
+        except InputError as exc:
+            if str(exc).startswith(("unknown task", "unknown model")):
+                raise InputError(f"{exc}{SPAWN_HINT}") from None
+            raise
 
-    with worker_pool(workers, mp_context=mp.get_context("spawn"), initializer=_warm, initargs=(spec,),
+    with worker_pool(workers, mp_context=mp.get_context("spawn"), initializer=_warm_quietly, initargs=(spec,),
                      threads=worker_threads(workers)) as pool:
         _drive(planner(workers), workers, lambda groups: pool.submit(_timed_unit, spec, groups),
                lambda futs: wait(futs, return_when=FIRST_COMPLETED)[0], result, done, max_units)
