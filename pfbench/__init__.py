@@ -14,7 +14,11 @@ Also at the top level: ``Method`` (the method table), ``FilterResult`` (what eve
 ``run_filter(method=...)``), ``kalman`` (KF / EKF / DARE / steady-state KF), ``sweep``
 (Monte Carlo sweeps), ``resampling``, ``metrics`` and the error types.
 """
-from .errors import DataError, InputError, NumericalError, PfbenchError, UnsupportedError
+from .errors import DataError, InputError, ModelError, NumericalError, PfbenchError, UnsupportedError
+
+#: what ``__getattr__`` imports on first use, by module
+_LAZY_MODULES = ("models", "resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends", "sweep",
+                 "plants", "compare", "tasks")
 
 
 def __getattr__(name):
@@ -39,14 +43,18 @@ def __getattr__(name):
         from .filters import guided
 
         return guided.run_guided
-    if name in ("models", "resampling", "kalman", "metrics", "recipes", "mcu", "filters", "backends", "sweep",
-                "plants"):
+    if name in _LAZY_MODULES:
         import importlib
 
         return importlib.import_module(f".{name}", __name__)
-    raise AttributeError(name)
+    raise AttributeError(f"module 'pfbench' has no attribute {name!r}")
+
+
+def __dir__():
+    """The lazy names too, so a notebook's completion offers ``run_filter``."""
+    return sorted(set(globals()) | set(__all__) | set(_LAZY_MODULES))
 
 
 __all__ = ["models", "run_filter", "FilterResult", "Method", "run_mpf", "run_kalman", "run_guided",
-           "kalman", "sweep", "PfbenchError",
-           "InputError", "DataError", "UnsupportedError", "NumericalError", "__version__"]
+           "kalman", "sweep", "compare", "tasks", "PfbenchError",
+           "InputError", "DataError", "ModelError", "UnsupportedError", "NumericalError", "__version__"]

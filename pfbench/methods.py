@@ -85,7 +85,12 @@ def check_backend(backend: str) -> str:
     return backend
 
 
-def check_dtype(dtype: str) -> str:
+def check_dtype(dtype) -> str:
+    """The name of a particle dtype; a NumPy dtype or type (``np.float32``) is taken by its name."""
+    if not isinstance(dtype, str) and getattr(dtype, "__name__", None) in DTYPES:
+        dtype = dtype.__name__
+    elif not isinstance(dtype, str) and str(getattr(dtype, "name", "")) in DTYPES:  # np.dtype("float32")
+        dtype = dtype.name
     if dtype not in DTYPES:
         raise InputError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
     return dtype

@@ -119,3 +119,13 @@ def test_dask_executor_without_dask_is_one_line(monkeypatch, tmp_path):
     assert r.exit_code == 2, r.output
     assert r.stderr.strip() == "error: --executor dask needs Dask, which is not installed: pip install 'pfbench[cluster]'"
     assert not (tmp_path / "s.jsonl").exists()
+
+
+def test_the_lazy_names_are_listed_and_the_errors_exported():
+    """dir(pfbench) lacked run_filter (a notebook completed nothing), pfbench.compare raised a bare
+    AttributeError and ModelError, documented, was not at the top level."""
+    import pfbench
+
+    assert {"run_filter", "FilterResult", "compare", "tasks", "models"} <= set(dir(pfbench))
+    assert pfbench.ModelError.__mro__[1] is pfbench.InputError
+    assert callable(pfbench.compare.make_spec) and callable(pfbench.tasks.get)

@@ -37,15 +37,12 @@ def make_spec(task_names, contender_texts, *, runs: int = 10, n_particles: int =
 
     names = comma_list(task_names, "--task") if isinstance(task_names, str) else list(task_names)
     tlist = [_tasks.get(n) for n in dict.fromkeys(names)]
-    contenders = parse_all(contender_texts)
-    if isinstance(runs, bool) or int(runs) < 1:
-        raise InputError(f"--runs must be an integer >= 1, got {runs!r}")
-    runs = int(runs)
+    contenders = parse_all([contender_texts] if isinstance(contender_texts, str) else contender_texts)
+    runs = _whole(runs, "--runs")
     for t in tlist:
         if t.data == _tasks.SIMULATED and runs > t.datasets:
             raise InputError(f"task {t.name} has {t.datasets} datasets; --runs {runs} asks for more")
-    if isinstance(n_particles, bool) or int(n_particles) < 1:
-        raise InputError(f"--particles must be an integer >= 1, got {n_particles!r}")
+    n_particles = _whole(n_particles, "--particles")
     if timeout_s is not None and not float(timeout_s) > 0:
         raise InputError(f"--timeout must be > 0 seconds, got {timeout_s!r}")
     names_c = [c.name for c in contenders]
@@ -55,9 +52,18 @@ def make_spec(task_names, contender_texts, *, runs: int = 10, n_particles: int =
             "tasks": [t.as_dict() for t in tlist],
             "contenders": [c.describe() for c in contenders],
             "configs": [[t.name, c.name] for t in tlist for c in contenders],
-            "runs": runs, "n_particles": int(n_particles),
+            "runs": runs, "n_particles": n_particles,
             "timeout_s": None if timeout_s is None else float(timeout_s),
             "baseline": baseline or names_c[0], "code": _code_fingerprint(contenders)}
+
+
+def _whole(value, flag: str) -> int:
+    """``value`` as an integer >= 1 (2.5 was cut to 2, True taken as 1); an InputError otherwise."""
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise InputError(f"{flag} must be an integer >= 1, got {value!r}")
+    return int(value)
 
 
 def _code_fingerprint(contenders) -> str:

@@ -14,10 +14,13 @@ def check_inputs(model, y, u):
     if not isinstance(model, StateSpaceModel):
         raise InputError("model must be a pfbench StateSpaceModel (see pfbench.models.get)")
     y = np.asarray(y, dtype=np.float64)
-    if y.ndim == 1:
-        y = y.reshape(-1, 1) if model.n_y == 1 else y.reshape(1, -1)
-    if y.ndim != 2 or y.shape[1] != model.n_y or y.shape[0] < 1:
-        raise InputError(f"y must have shape (n_steps, {model.n_y}), got {np.shape(y)}")
+    given = y.shape
+    if y.ndim == 1 and model.n_y == 1:  # one measurement per step
+        y = y.reshape(-1, 1)
+    if y.ndim != 2 or y.shape[1] != model.n_y:  # a 1-D y for several outputs: steps or one step? refused
+        raise InputError(f"y must have shape (n_steps, {model.n_y}), got {given}")
+    if y.shape[0] < 1:
+        raise InputError("y has no steps: at least one measurement is needed")
     bad = ~np.isfinite(y).all(axis=1)
     if bad.any():
         t = int(np.argmax(bad))
@@ -37,7 +40,8 @@ def seed_sequence(seed) -> np.random.SeedSequence:
     try:
         return np.random.SeedSequence(seed)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"seed must be a non-negative integer, got {seed!r}") from exc
+        raise InputError(f"seed must be a non-negative integer, a sequence of them or a numpy.random.SeedSequence "
+                         f"(None: fresh entropy, a run that cannot be repeated), got {seed!r}") from exc
 
 
 def ess_count(ess_threshold, n_per: int) -> float:
@@ -49,6 +53,8 @@ def ess_count(ess_threshold, n_per: int) -> float:
     """
     frac = 0.5 if ess_threshold is None else ess_threshold
     try:
+        if isinstance(frac, (bool, np.bool_)):  # True was taken as 1.0
+            raise TypeError
         frac = float(frac)
     except (TypeError, ValueError):
         raise InputError(f"ess_threshold must be a number in (0, 1], got {ess_threshold!r}") from None

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
+
 
 #: why a run's log-likelihood is not finite, and where to look; ``pfbench run`` and sweeps say it
 NON_FINITE_WHY = ("every particle's likelihood was zero, NaN or infinite (check the model's log_likelihood and "
@@ -64,6 +66,12 @@ class FilterResult:
     extras: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line (the dataclass's repr printed every array: 50 000 characters for M = 300)."""
+        return (f"FilterResult(method={self.method!r}, backend={self.backend!r}, dtype={self.dtype!r}, "
+                f"n_particles={self.n_particles}, n_filters={self.n_filters}, n_steps={self.n_steps}, "
+                f"loglik={self.loglik:.6g}, n_resampled={self.n_resampled}, elapsed_s={self.elapsed_s:.3g})")
+
     def __post_init__(self):
         if self.sub_estimates is None:
             self.sub_estimates = self.estimates[None]
@@ -89,14 +97,15 @@ class FilterResult:
 
     def to_dataframe(self, names=None):
         """One row per step: ``step``, the estimate and variance of each state (``<name>`` and
-        ``<name>_var``; ``names`` default ``x0, x1, ...``), ``ess``, ``loglik_increment`` and
-        ``degenerate`` (a pandas DataFrame)."""
+        ``<name>_var``; ``names`` default ``x0, x1, ...``, e.g. the model's ``state_names``), ``ess``,
+        ``loglik_increment`` and ``degenerate`` (a pandas DataFrame)."""
         import pandas as pd
 
         n_x = self.estimates.shape[1]
-        names = list(names) if names is not None else [f"x{i}" for i in range(n_x)]
+        names = [names] if isinstance(names, str) else list(names) if names is not None else [
+            f"x{i}" for i in range(n_x)]
         if len(names) != n_x:
-            raise ValueError(f"{len(names)} names for {n_x} states")
+            raise InputError(f"{len(names)} names for {n_x} states")
         cols = {"step": np.arange(self.n_steps)}
         for i, name in enumerate(names):
             cols[name] = self.estimates[:, i]

@@ -1,9 +1,12 @@
 """``pfbench.run_filter``: one entry point for every filtering method of :class:`Method`."""
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import InputError
 from ..models.contract import check_model, named_model_errors, needs_of
-from ..methods import ARRAY_BACKENDS, Estimate, Method
+from ..methods import ARRAY_BACKENDS, Estimate, Method, check_dtype
+from ..resampling import Scheme
 from .inputs import check_inputs
 from .result import FilterResult
 
@@ -11,7 +14,7 @@ from .result import FilterResult
 def _count(value, name: str, minimum: int = 1) -> int:
     try:
         v = int(value)
-        ok = v == value
+        ok = v == value and not isinstance(value, (bool, np.bool_))   # True is not one particle
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok or v < minimum:
@@ -73,6 +76,13 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
     """
     m = Method.parse(method)
     est_at = Estimate.parse(estimate)
+    dtype = check_dtype(dtype)      # checked for every method: the Kalman filter's too, which ignores them
+    Scheme.parse(resampling)
+    if n_threads is not None:
+        n_threads = _count(n_threads, "n_threads")
+    for flag, value in (("common_random_numbers", common_random_numbers), ("store_particles", store_particles)):
+        if not isinstance(value, (bool, np.bool_)):  # 'no' was taken as True
+            raise InputError(f"{flag} must be True or False, got {value!r}")
     if est_at == Estimate.POST and m.family != "particle":
         raise InputError(f"estimate='post' applies to the particle methods "
                          f"({', '.join(l for l in Method.labels() if Method.parse(l).family == 'particle')}), "

@@ -282,6 +282,10 @@ class StateSpaceModel:
                 raise InputError(f"model {name_of(self)!r} needs inputs u of shape (n_steps, {self.n_u})")
             return np.zeros((n_steps, 0))
         u = np.ascontiguousarray(u, dtype=np.float64)
+        if not self.n_u and u.size:
+            from .contract import name_of
+
+            raise InputError(f"model {name_of(self)!r} takes no inputs: pass u=None")
         if u.ndim == 1:
             u = u.reshape(-1, 1)
         if u.shape != (n_steps, self.n_u):

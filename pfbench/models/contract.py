@@ -101,12 +101,27 @@ def _check_dimensions(model) -> None:
 def _probe_args(model, y, u) -> dict:
     """Arguments of each function on the probe block (zero noise, the first measurement)."""
     p = call(model, "params", {"params": "the run"})
+    _check_params(model, p)
     n = PROBE
     n_prop = getattr(model, "n_proposal_noise", None)
     return {"p": p, "n": n, "y0": np.asarray(y[0]), "u0": np.asarray(u[0]),
             "noise": np.zeros((n, int(model.n_noise))), "obs_noise": np.zeros((n, int(model.obs_noise_dim))),
             "prop_noise": np.zeros((n, int(model.n_noise if n_prop is None else n_prop))),
             "linear": None if getattr(model, "linear_states", None) is None else linear_indices(model)}
+
+
+def _check_params(model, p, path: str = "") -> None:
+    """``params()`` must be a tuple of numbers, numeric arrays and such tuples: what numba can type. A
+    dict, a list or an object ran on NumPy and failed deep in numba ("Cannot determine Numba type")."""
+    ok = "a number, a numeric array or a tuple of them"
+    if not isinstance(p, tuple):
+        raise ModelError(f"model {name_of(model)!r}: params() must return a tuple, each entry {ok}; got a "
+                         f"{type(p).__name__}")
+    for i, v in enumerate(p):
+        if isinstance(v, tuple):
+            _check_params(model, v, f"{path}[{i}]")
+        elif not (isinstance(v, (int, float, np.number)) or (isinstance(v, np.ndarray) and v.dtype.kind in "biuf")):
+            raise ModelError(f"model {name_of(model)!r}: params(){path}[{i}] is a {type(v).__name__}; it must be {ok}")
 
 
 def linear_indices(model) -> np.ndarray:

@@ -42,6 +42,7 @@ free again, the kernel releases it with its holder).
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import re
 import signal
@@ -241,8 +242,9 @@ def run_sweep(spec: dict, out, *, workers: int | None = None, executor: str = "l
         scheduler = check_scheduler(scheduler)
     if workers is None:
         workers = usable_cores()
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1:
         raise InputError(f"--workers must be an integer >= 1 (omit it to use all cores), got {workers!r}")
+    workers = int(workers)
     check_store_name(out)
     if spec.get("kind") is None:  # another kind of grid checks its own memory
         check_sweep_memory(spec, workers if executor == "local" else 1)

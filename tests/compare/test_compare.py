@@ -274,6 +274,20 @@ def test_spec_parsing():
         C.parse("pfbench:multipdf:filters=2.5")
 
 
+def test_make_spec_from_python_values():
+    """From Python: one contender as a string was split into letters ("--contender 'p'"), runs=2.5
+    and n_particles=300.7 were cut to 2 and 300. Catches either back."""
+    import numpy as np
+
+    spec = make_spec("ob1", "pfbench:bootstrap", runs=np.int64(2), n_particles=300)
+    assert [c["spec"] for c in spec["contenders"]] == ["pfbench:bootstrap"] and spec["runs"] == 2
+    for kw, says in ((dict(runs=2.5), "--runs must be an integer >= 1, got 2.5"),
+                     (dict(n_particles=300.7), "--particles must be an integer >= 1, got 300.7"),
+                     (dict(runs=True), "--runs must be an integer")):
+        with pytest.raises(InputError, match=re.escape(says)):
+            make_spec("ob1", "pfbench:bootstrap", **kw)
+
+
 
 @pytest.mark.parametrize("spec, says", [("pfbench:bootstrap:resampling=sys", "unknown resampling scheme 'sys'"),
                                         ("pfbench:bootstrap:threads=0", "threads must be >= 1"),

@@ -199,6 +199,16 @@ def test_nan_measurement_names_the_step(bad):
     (dict(n_particles=10, dtype="float16"), "unknown dtype"),
     (dict(n_particles=10, resampling="magic"), "unknown resampling"),
     (dict(n_particles=10, n_filters=2), "multipdf"),
+    # accepted, and ignored or misread, from Python
+    (dict(n_particles=True), "n_particles must be an integer"),              # ran with 1 particle
+    (dict(n_particles=10, n_threads=0), "n_threads must be an integer >= 1"),
+    (dict(n_particles=10, n_threads=1.5), "n_threads must be an integer >= 1"),
+    (dict(n_particles=10, method="sir", ess_threshold=True), "ess_threshold must be a number"),  # was 1.0
+    (dict(n_particles=10, common_random_numbers="no"), "common_random_numbers must be True or False"),
+    (dict(n_particles=10, store_particles="no"), "store_particles must be True or False"),
+    (dict(method="kalman", dtype="bogus"), "unknown dtype"),                  # the Kalman filter ignored them
+    (dict(method="kalman", resampling="bogus"), "unknown resampling"),
+    (dict(n_particles=10, seed=-1), "seed must be a non-negative integer, a sequence of them or a"),
 ])
 def test_bad_arguments(kw, msg):
     model = models.get("ob1")
@@ -215,3 +225,33 @@ def test_wrong_shapes():
         pfbench.run_filter(model, traj.y, None, method="bootstrap", n_particles=10, backend="numpy")
     with pytest.raises(ValueError, match="y must have shape"):
         pfbench.run_filter(model, traj.y[:, :1], traj.u, method="bootstrap", n_particles=10)
+    # a flat y for two outputs: reshaped to one step (when it had two values) or named by its new shape
+    for flat in (traj.y[:, 0], traj.y[0]):
+        with pytest.raises(ValueError, match=rf"y must have shape \(n_steps, 2\), got \({flat.size},\)"):
+            pfbench.run_filter(model, flat, traj.u[:1], n_particles=10, backend="numpy")
+    with pytest.raises(ValueError, match="y has no steps"):
+        pfbench.run_filter(model, traj.y[:0], traj.u[:0], n_particles=10, backend="numpy")
+    ob1 = models.get("ob1")
+    with pytest.raises(ValueError, match="model 'ob1' takes no inputs: pass u=None"):
+        pfbench.run_filter(ob1, traj.y[:, :1], traj.u, n_particles=10, backend="numpy")
+
+
+def test_numpy_dtypes_are_taken_by_name():
+    """dtype=np.float32 was "unknown dtype <class 'numpy.float32'>"; np.dtype('float32') ran but left
+    a dtype object in the result. Catches the name not normalised."""
+    model = models.get("ob1")
+    traj = model.simulate(5, seed=1)
+    for dtype in (np.float32, np.dtype("float32"), "float32"):
+        res = pfbench.run_filter(model, traj.y, n_particles=10, backend="numpy", dtype=dtype)
+        assert res.dtype == "float32" and isinstance(res.dtype, str)
+
+
+def test_a_result_prints_in_one_line_and_names_its_columns():
+    """The dataclass repr printed every array (50 000 characters for M = 300), and a single name
+    was split into letters. Catches either back."""
+    model = models.get("ob1")
+    res = pfbench.run_filter(model, model.simulate(300, seed=1).y, n_particles=10, backend="numpy")
+    assert len(repr(res)) < 300 and repr(res).startswith("FilterResult(method='bootstrap'")
+    assert list(res.to_dataframe("pos").columns[1:3]) == ["pos", "pos_var"]
+    with pytest.raises(ValueError, match="2 names for 1 states"):
+        res.to_dataframe(["a", "b"])

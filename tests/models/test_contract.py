@@ -284,6 +284,32 @@ class SqrtParams(Good):
         return (np.sqrt(self.q),)
 
 
+class DictParams(Good):
+    name = "dictparams"
+
+    def params(self):
+        return {"q": 1.0}
+
+
+class NestedText(Good):
+    name = "nestedtext"
+
+    def params(self):
+        return (1.0, (np.ones(2), "x"))
+
+
+@pytest.mark.parametrize("model, says", [
+    (DictParams(), "params() must return a tuple, each entry a number, a numeric array or a tuple of them; got a dict"),
+    (NestedText(), "params()[1][1] is a str"),
+])
+def test_params_numba_cannot_type_are_refused_before_the_run(model, says):
+    """A dict or a string in params() ran on NumPy and failed deep in numba ("Cannot determine
+    Numba type of <class 'dict'>", reported as a pfbench bug). Catches the type check dropped."""
+    with pytest.raises(InputError) as err:
+        pfbench.run_filter(model, Y, n_particles=10, backend="numpy")
+    assert str(err.value).startswith(f"model {model.name!r}: {says}"), err.value
+
+
 class FailingInit(Good):
     name = "failinginit_test"
 
