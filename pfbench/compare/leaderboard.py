@@ -56,8 +56,11 @@ def _delta(task: dict, name: str, key: str) -> str:
 def markdown(summary: dict) -> str:
     lines = ["# Leaderboard", "",
              f"{summary['runs']} runs per task and contender, N_p = {summary['n_particles']}; "
-             f"baseline `{summary['baseline']}`. Intervals: 95 % t-intervals over runs; Δ: paired "
-             "difference against the baseline on the runs both completed. Time: the filter's own "
+             f"baseline `{summary['baseline']}`. Intervals: 95 % t-intervals over runs (held at 0 for "
+             "quantities that cannot be negative); Δ: paired difference against the baseline on the n runs "
+             "both completed (a lower aRMSE and a higher log-likelihood are better). Log-lik sd: over "
+             "runs; on simulated data each run is another dataset, so it holds the data's own spread "
+             "too, on real data it is the estimator's alone. Time: the filter's own "
              "time per particle and step (median; per step for filters without particles). Log-lik bias: "
              "mean of log L̂ - log L against the exact value, about -var/2 for an unbiased L̂; "
              "L̂/L: its mean, 1 for an unbiased filter.", ""]
@@ -93,6 +96,8 @@ def markdown(summary: dict) -> str:
                         _f(s.get("lik_ratio"), ".3g") + _ci(s.get("lik_ratio_ci"))]
             row += [_f(s["ns_per_particle_step"], ".3g"), f"{s['runs']} / {s['failed']}"]
             lines.append("| " + " | ".join(row) + " |")
+        if not t["contenders"][t["baseline"]]["runs"]:
+            lines += ["", f"The baseline `{t['baseline']}` completed no run: no paired differences."]
         fails = [(n, s) for n, s in t["contenders"].items() if s["failed"] or s["missing"]]
         if fails:
             lines.append("")

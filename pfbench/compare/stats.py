@@ -37,9 +37,14 @@ def _mean(x):
     return float(x.mean()) if x.size else None
 
 
-def _ci(x):
+def _ci(x, nonnegative: bool = False):
+    """The 95 % t-interval of the mean of ``x``; for a quantity that cannot be negative (an aRMSE, a
+    likelihood ratio) the lower end is held at 0: the interval [-13.4, 18.8] of L̂/L at R = 2 said
+    nothing a reader could use below zero."""
     ti = t_interval(x)
-    return None if ti is None else [ti[1], ti[2]]
+    if ti is None:
+        return None
+    return [max(ti[1], 0.0) if nonnegative else ti[1], ti[2]]
 
 
 def paired(a: dict, b: dict, key: str) -> dict | None:
@@ -67,7 +72,7 @@ def contender_stats(recs: list[dict], runs: int) -> dict:
            "failures": dict(Counter(r.get("reason") or "unknown" for r in bad))}
     armse = _vals(ok, "armse")
     out["armse"] = _mean(armse)
-    out["armse_ci"] = _ci(armse)
+    out["armse_ci"] = _ci(armse, nonnegative=True)
     rm = [r["rmse"] for r in ok if r.get("rmse")]
     out["rmse"] = np.mean(np.array(rm, dtype=float), axis=0).tolist() if rm else None
     ll = _vals(ok, "loglik")
@@ -83,7 +88,7 @@ def contender_stats(recs: list[dict], runs: int) -> dict:
         out["loglik_variance"] = float(fe.var(ddof=1)) if fe.size > 1 else None
         ratio = np.exp(np.clip(err, -700.0, 700.0))   # L_hat / L: an unbiased PF has mean 1
         out["lik_ratio"] = _mean(ratio)
-        out["lik_ratio_ci"] = _ci(ratio)
+        out["lik_ratio_ci"] = _ci(ratio, nonnegative=True)
         out["armse_vs_exact"] = _mean(_vals(ok, "armse_vs_exact"))
     out["coverage90"] = _mean(_vals(ok, "coverage90"))
     for k in ("ns_per_particle_step", "own_s", "wall_s", "startup_s", "overhead_s"):

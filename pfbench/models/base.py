@@ -247,10 +247,16 @@ class StateSpaceModel:
         Draw order: inputs (if any), x^(0) from the prior, then per step the transition
         noise (n_noise) and the measurement noise (n_obs_noise).
         """
-        if int(n_steps) < 1:
-            raise InputError("n_steps must be >= 1")
+        import numbers
+
+        if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 1:
+            raise InputError(f"n_steps must be an integer >= 1, got {n_steps!r}")  # 2.7 ran 2 steps
         n_steps = int(n_steps)
-        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        try:
+            rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        except (TypeError, ValueError):
+            raise InputError(f"seed must be a non-negative integer (or a sequence of them), a "
+                             f"numpy.random.Generator or None, got {seed!r}") from None
         u = self.inputs(rng, n_steps)
         u_arr = self.input_array(u, n_steps)
         from .contract import check_model, named_model_errors, shaped   # a mistake reads as one line

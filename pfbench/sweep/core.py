@@ -66,8 +66,14 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     from .. import models
     from ..resampling import Scheme
 
+    if not isinstance(model, str):  # a model object: its class's registered name, parameters apart
+        raise InputError(f"model must be a registered model spec such as 'ob3:v4' (parameters in params=), "
+                         f"got {type(model).__name__}")
     model, params = models.parse_spec(model, params)
     models.get(model, **params)  # validates the parameters
+    # one value where a list is meant: particles=1000, methods="bootstrap" (it was split into letters)
+    particles, filters = (v if np.iterable(v) else [v] for v in (particles, filters))
+    methods = [methods] if isinstance(methods, str) else methods
     if configs is None:
         configs = []
         for m in methods:

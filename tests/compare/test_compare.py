@@ -429,3 +429,19 @@ def test_a_name_the_workers_cannot_find_is_said_so(tmp_path, monkeypatch):
     spec = make_spec(["here-only"], ["pfbench:bootstrap:backend=numpy"], runs=2, n_particles=10)
     with pytest.raises(InputError, match="unknown task 'here-only'.*start afresh.*define them in a module"):
         run_compare(spec, tmp_path / "j.jsonl", workers=2, progress=False)
+
+
+def test_intervals_of_nonnegative_quantities_stop_at_zero_and_a_silent_baseline_is_said():
+    """At R = 2 the t-interval of an aRMSE or of L̂/L went below zero ([-13.4, 18.8]); a baseline
+    that completed no run left every Δ as "—" without a word. Catches either back."""
+    from pfbench.compare.leaderboard import markdown
+    from pfbench.compare.stats import contender_stats
+
+    recs = [{"ok": True, "armse": v, "loglik": -v, "loglik_error": e} for v, e in ((0.1, -3.0), (3.0, 2.0))]
+    s = contender_stats(recs, 2)
+    assert s["armse_ci"][0] == 0.0 < s["armse_ci"][1] and s["lik_ratio_ci"][0] == 0.0
+    assert contender_stats(recs, 2)["loglik_ci"][0] < 0.0          # a log-likelihood may be negative
+    task = {"data": "simulated", "model": "m", "steps": 3, "reference": None, "runs": 2, "baseline": "b",
+            "n_particles": 5, "contenders": {"b": {**contender_stats([], 2), "complete": False}, "a": s}}
+    md = markdown({"runs": 2, "n_particles": 5, "baseline": "b", "tasks": {"t": task}, "complete_contenders": ["a"]})
+    assert "The baseline `b` completed no run: no paired differences." in md

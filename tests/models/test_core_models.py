@@ -1,4 +1,6 @@
 """Registry and the [MultiPDF] objects Ob1-Ob4 + the linear-Gaussian reference."""
+import re
+
 import numpy as np
 import pytest
 
@@ -74,3 +76,13 @@ def test_linear_gaussian_loglik_matches_scipy():
     ll = m.log_likelihood(y, x, np.zeros(0), 0, m.params())
     ref = [multivariate_normal(mean=m.C @ xi, cov=m.R).logpdf(y) for xi in x]
     assert np.allclose(ll, ref)
+
+
+@pytest.mark.parametrize("args, says", [((2.7,), "n_steps must be an integer >= 1, got 2.7"),   # ran 2 steps
+                                        ((True,), "n_steps must be an integer >= 1, got True"),
+                                        ((5, -1), "seed must be a non-negative integer")])      # NumPy's raw error
+def test_simulate_refuses_what_it_would_misread(args, says):
+    from pfbench.errors import InputError
+
+    with pytest.raises(InputError, match=re.escape(says)):
+        models.get("ob1").simulate(*args)

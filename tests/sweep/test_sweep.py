@@ -434,3 +434,15 @@ def test_a_sweep_names_the_models_errors_and_warns_of_its_non_finite_likelihoods
     r = CliRunner().invoke(main, args + ["--model", "sweep_nan_ll", "--out", str(f.with_name("b.parquet"))])
     assert r.exit_code == 0, r.output
     assert "warning: 2 of 2 tasks have a log-likelihood of -inf or NaN" in r.stderr
+
+
+def test_make_spec_takes_one_value_where_a_list_is_meant():
+    """From Python, particles=1000 was a TypeError, methods="bootstrap" was split into letters
+    ("unknown method 'b'") and a model object "unknown model '<model ...'". Catches either back."""
+    from pfbench import models
+    from pfbench.errors import InputError
+
+    spec = make_spec("ob1", particles=100, filters=1, methods="bootstrap", runs=2, steps=5)
+    assert spec["configs"] == [["bootstrap", 100, 1]]
+    with pytest.raises(InputError, match="model must be a registered model spec"):
+        make_spec(models.get("ob1"))
