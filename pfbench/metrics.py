@@ -9,14 +9,26 @@ from .errors import InputError
 
 
 def _pair(est, truth):
-    est = np.asarray(est, dtype=np.float64)
-    truth = np.asarray(truth, dtype=np.float64)
+    """(estimates, truth) as (M, n_x) float arrays of one shape, at least one step; ``est`` may be a
+    :class:`~pfbench.FilterResult` (its estimates) or a :class:`~pfbench.models.base.Trajectory`
+    ``truth`` (its states)."""
+    if hasattr(est, "estimates") and hasattr(est, "loglik"):   # a FilterResult
+        est = est.estimates
+    if hasattr(truth, "x") and hasattr(truth, "x0"):            # a Trajectory
+        truth = truth.x
+    try:
+        est = np.asarray(est, dtype=np.float64)
+        truth = np.asarray(truth, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"estimates and truth must be numeric arrays: {exc}") from None
     if est.ndim == 1:
         est = est[:, None]
     if truth.ndim == 1:
         truth = truth[:, None]
-    if est.shape != truth.shape:
-        raise InputError(f"estimates {est.shape} and truth {truth.shape} differ in shape")
+    if est.shape != truth.shape or est.ndim != 2:
+        raise InputError(f"estimates {est.shape} and truth {truth.shape} must both be (n_steps, n_x)")
+    if est.shape[0] < 1:
+        raise InputError("estimates and truth have no steps")
     return est, truth
 
 
