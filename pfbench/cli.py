@@ -370,7 +370,7 @@ def _given(name: str) -> bool:
 
 
 #: the ``run`` options each method cannot use (the Kalman filter is exact: no particles, no random
-#: numbers of its own, float64), and those a --data log makes meaningless
+#: numbers of its own, float64)
 _UNUSED = {"kalman": ("particles", "resampling", "dtype", "threads"), "sis": ("resampling",)}
 
 

@@ -77,6 +77,11 @@ class RunFailed(PfbenchError):
     """One run of a contender failed; the message is the one-line reason."""
 
 
+class NotApplicable(RunFailed):
+    """The contender cannot run the task's model at all (e.g. a Kalman filter on a nonlinear model):
+    reported as not applicable to the task, not as failed runs."""
+
+
 def one_line(text, limit: int = 200) -> str:
     s = " ".join(str(text).split())
     return s if len(s) <= limit else s[: limit - 3] + "..."
@@ -236,10 +241,14 @@ class PfbenchContender(Contender):
                    n_particles=max(2, kw["n_filters"]), seed=0, **kw)
 
     def run(self, task, model, y, u, *, n_particles, seed, timeout):
+        from ..errors import UnsupportedError
         from ..filters import run_filter
 
         t0 = time.perf_counter()
-        res = run_filter(model, y, u, n_particles=n_particles, seed=seed, **self._kw())
+        try:
+            res = run_filter(model, y, u, n_particles=n_particles, seed=seed, **self._kw())
+        except UnsupportedError as exc:
+            raise NotApplicable(str(exc)) from None
         return normalise(res, y.shape[0], model.n_x, time.perf_counter() - t0)
 
 

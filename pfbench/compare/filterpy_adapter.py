@@ -2,8 +2,8 @@
 
 They need a model with Gaussian noise whose matrices filterpy can use: a linear-Gaussian model
 (attributes A, C, Q, R, x0, P0, and B, D with inputs, as :class:`~pfbench.models.linear_gaussian.
-LinearGaussian`), where the EKF is the exact Kalman filter. Other models are a failed run naming
-what is missing. Time: the filter loop only (``elapsed_s``).
+LinearGaussian`), where the EKF is the exact Kalman filter. To other models they do not apply
+(:class:`~pfbench.compare.contenders.NotApplicable`, naming what is missing). Time: the filter loop only (``elapsed_s``).
 """
 from __future__ import annotations
 
@@ -13,11 +13,11 @@ import numpy as np
 
 
 def run_filterpy(model, y, u, alg: str) -> dict:
-    from .contenders import RunFailed
+    from .contenders import NotApplicable
 
     missing = [a for a in ("A", "C", "Q", "R", "x0", "P0") if not hasattr(model, a)]
     if missing:
-        raise RunFailed(f"filterpy:{alg} needs a linear-Gaussian model; {model.name!r} lacks "
+        raise NotApplicable(f"filterpy:{alg} needs a linear-Gaussian model; {model.name!r} lacks "
                         f"{', '.join(missing)}")
     A, C, Q, R = (np.asarray(getattr(model, k), dtype=float) for k in ("A", "C", "Q", "R"))
     n_x, n_y = A.shape[0], C.shape[0]

@@ -94,20 +94,24 @@ def markdown(summary: dict) -> str:
             if exact:
                 row += [_f(s.get("loglik_bias"), ".3g") + _ci(s.get("loglik_bias_ci")),
                         _f(s.get("lik_ratio"), ".3g") + _ci(s.get("lik_ratio_ci"))]
-            row += [_f(s["ns_per_particle_step"], ".3g"), f"{s['runs']} / {s['failed']}"]
+            row += [_f(s["ns_per_particle_step"], ".3g"),
+                    "does not apply" if s.get("not_applicable") and not s["runs"] else f"{s['runs']} / {s['failed']}"]
             lines.append("| " + " | ".join(row) + " |")
         if not t["contenders"][t["baseline"]]["runs"]:
             lines += ["", f"The baseline `{t['baseline']}` completed no run: no paired differences."]
         fails = [(n, s) for n, s in t["contenders"].items() if s["failed"] or s["missing"]]
-        if fails:
+        na = [(n, s["not_applicable"]) for n, s in t["contenders"].items() if s.get("not_applicable")]
+        if na or fails:
             lines.append("")
+            lines += [f"- `{n}` does not apply to this task: {why}" for n, why in na]
             for n, s in fails:
                 why = "; ".join(f"{k} ({v}x)" for k, v in s["failures"].items())
                 miss = f" {s['missing']} runs not done." if s["missing"] else ""
                 lines.append(f"- `{n}` failed {s['failed']} of {t['runs']} runs: {why}.{miss}")
         lines.append("")
     done = summary["complete_contenders"]
-    lines.append("Contenders that completed every run: " + (", ".join(f"`{c}`" for c in done) or "none") + ".")
+    lines.append("Contenders that completed every run of the tasks they apply to: "
+                 + (", ".join(f"`{c}`" for c in done) or "none") + ".")
     return "\n".join(lines) + "\n"
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from .. import tasks as _tasks
 from ..errors import InputError
-from .contenders import RunFailed, parse, parse_all
+from .contenders import NotApplicable, RunFailed, parse, parse_all
 
 SPEC_VERSION = 1
 Z90 = 1.6448536269514722
@@ -162,6 +162,8 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         try:
             res = cont.run(task, own_model, own_y, own_u, n_particles=n_p, seed=seed,
                            timeout=spec.get("timeout_s"))
+        except NotApplicable as exc:
+            rec.update(reason=str(exc), not_applicable=True)
         except RunFailed as exc:
             rec["reason"] = str(exc)
         except Exception as exc:  # noqa: BLE001 - a contender's bug is a failed run, not ours

@@ -66,9 +66,10 @@ def paired(a: dict, b: dict, key: str) -> dict | None:
 def contender_stats(recs: list[dict], runs: int) -> dict:
     """Every metric of one contender on one task from its records."""
     ok = [r for r in recs if r.get("ok")]
-    bad = [r for r in recs if not r.get("ok")]
+    na = [r for r in recs if r.get("not_applicable")]
+    bad = [r for r in recs if not r.get("ok") and not r.get("not_applicable")]
     out = {"runs": len(ok), "failed": len(bad), "missing": max(0, runs - len(recs)),
-           "complete": len(ok) == runs,
+           "complete": len(ok) == runs, "not_applicable": na[0]["reason"] if na else None,
            "failures": dict(Counter(r.get("reason") or "unknown" for r in bad))}
     armse = _vals(ok, "armse")
     out["armse"] = _mean(armse)
@@ -122,7 +123,12 @@ def summarize(spec: dict, records: list[dict]) -> dict:
         tasks[name] = {"model": t["model"], "data": t["data"], "reference": t["reference"],
                        "steps": t["steps"], "runs": spec["runs"], "n_particles": spec["n_particles"],
                        "baseline": base, "contenders": conts}
-    complete = [c["name"] for c in spec["contenders"]
-                if all(tasks[t]["contenders"][c["name"]]["complete"] for t in tasks)]
+    def done(name, t):
+        s = tasks[t]["contenders"][name]
+        return s["complete"] or (s["not_applicable"] is not None and not s["failed"])
+
+    complete = [c["name"] for c in spec["contenders"]   # every task it applies to, and one at least
+                if all(done(c["name"], t) for t in tasks) and any(tasks[t]["contenders"][c["name"]]["complete"]
+                                                               for t in tasks)]
     return {"tasks": tasks, "contenders": specs, "baseline": base, "runs": spec["runs"],
             "n_particles": spec["n_particles"], "complete_contenders": complete}

@@ -445,3 +445,20 @@ def test_intervals_of_nonnegative_quantities_stop_at_zero_and_a_silent_baseline_
             "n_particles": 5, "contenders": {"b": {**contender_stats([], 2), "complete": False}, "a": s}}
     md = markdown({"runs": 2, "n_particles": 5, "baseline": "b", "tasks": {"t": task}, "complete_contenders": ["a"]})
     assert "The baseline `b` completed no run: no paired differences." in md
+
+
+def test_a_method_that_cannot_run_a_task_does_not_apply_rather_than_fail(tmp_path):
+    """pfbench:kalman in a comparison over ob1 and lg-d2 failed every ob1 run and so never counted
+    as complete; it does not apply to ob1 (a nonlinear model), and completes lg-d2. Catches the
+    UnsupportedError taken for a failure."""
+    res = _invoke("compare", "--task", "ob1,lg-d2", "--runs", 2, "--particles", 20, "--quiet", "--json",
+                  "--contender", "pfbench:bootstrap:backend=numpy", "--contender", "pfbench:kalman")
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    k_ob1 = data["tasks"]["ob1"]["contenders"]["kalman"]
+    assert k_ob1["failed"] == 0 and "linear-Gaussian substructure" in k_ob1["not_applicable"]
+    assert data["tasks"]["lg-d2"]["contenders"]["kalman"]["complete"]
+    assert set(data["complete_contenders"]) == {"bootstrap-numpy", "kalman"}
+    md = _invoke("compare", "--task", "ob1", "--runs", 2, "--particles", 20, "--quiet",
+                 "--contender", "pfbench:bootstrap:backend=numpy", "--contender", "pfbench:kalman").stdout
+    assert "- `kalman` does not apply to this task:" in md and "| does not apply |" in md
