@@ -157,10 +157,20 @@ def plot_task(tname: str, task: dict):
 
 
 def write(summary: dict, out_dir, plots: bool = True) -> list[Path]:
-    """Write leaderboard.md, compare.json and <task>.png into ``out_dir``; returns the paths."""
+    """Write leaderboard.md, compare.json and <task>.png into ``out_dir``; returns the paths. The plots
+    of tasks the comparison there had before (``--overwrite`` with other tasks) are removed, so no
+    picture outlives the leaderboard it belonged to."""
+    import json
+
     from .. import io
 
     out = Path(out_dir)
+    try:
+        before = set(json.loads((out / "compare.json").read_text()).get("tasks", {}))
+    except (OSError, ValueError, AttributeError):
+        before = set()
+    for old in before - set(summary["tasks"]):
+        (out / f"{old}.png").unlink(missing_ok=True)
     paths = [io.write_text(out / "leaderboard.md", markdown(summary)),
              io.write_json(out / "compare.json", summary)]
     if plots:

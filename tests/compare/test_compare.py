@@ -462,3 +462,13 @@ def test_a_method_that_cannot_run_a_task_does_not_apply_rather_than_fail(tmp_pat
     md = _invoke("compare", "--task", "ob1", "--runs", 2, "--particles", 20, "--quiet",
                  "--contender", "pfbench:bootstrap:backend=numpy", "--contender", "pfbench:kalman").stdout
     assert "- `kalman` does not apply to this task:" in md and "| does not apply |" in md
+
+
+def test_overwrite_with_other_tasks_leaves_no_old_plot(tmp_path):
+    """--overwrite with fewer tasks left the old <task>.png beside the new leaderboard. Catches the
+    old plots kept."""
+    args = ["compare", "--runs", 2, "--particles", 20, "--quiet", "--out", tmp_path,
+            "--contender", "pfbench:bootstrap:backend=numpy"]
+    assert _invoke(*args, "--task", "ob1,lg-d2").exit_code == 0 and (tmp_path / "ob1.png").is_file()
+    assert _invoke(*args, "--task", "lg-d2", "--overwrite").exit_code == 0
+    assert not (tmp_path / "ob1.png").exists() and (tmp_path / "lg-d2.png").is_file()
