@@ -97,13 +97,14 @@ class FilterResult:
 
     def to_dataframe(self, names=None):
         """One row per step: ``step``, the estimate and variance of each state (``<name>`` and
-        ``<name>_var``; ``names`` default ``x0, x1, ...``, e.g. the model's ``state_names``), ``ess``,
-        ``loglik_increment`` and ``degenerate`` (a pandas DataFrame)."""
+        ``<name>_var``; ``names`` default: the model's ``state_names`` as :func:`pfbench.run_filter`
+        keeps them in ``info``, else ``x0, x1, ...``), ``ess``, ``loglik_increment`` and ``degenerate``
+        (a pandas DataFrame)."""
         import pandas as pd
 
         n_x = self.estimates.shape[1]
-        names = [names] if isinstance(names, str) else list(names) if names is not None else [
-            f"x{i}" for i in range(n_x)]
+        names = names if names is not None else self.info.get("state_names") or [f"x{i}" for i in range(n_x)]
+        names = [names] if isinstance(names, str) else list(names)
         if len(names) != n_x:
             raise InputError(f"{len(names)} names for {n_x} states")
         cols = {"step": np.arange(self.n_steps)}

@@ -103,11 +103,11 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         if m.family == "particle":
             from .particle import run_particle
 
-            return run_particle(model, y, u, method=m, n_particles=n_particles, n_filters=n_filters,
-                                resampling=resampling, ess_threshold=ess_threshold, backend=backend,
-                                dtype=dtype, seed=seed, common_random_numbers=common_random_numbers,
-                                n_threads=n_threads, store_particles=store_particles, estimate=est_at.label,
-                                _block=_block)
+            return _named(model, run_particle(
+                model, y, u, method=m, n_particles=n_particles, n_filters=n_filters, resampling=resampling,
+                ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed,
+                common_random_numbers=common_random_numbers, n_threads=n_threads,
+                store_particles=store_particles, estimate=est_at.label, _block=_block))
         if n_filters != 1:
             raise InputError(f"n_filters={n_filters} needs method='multipdf'")
         if backend in ARRAY_BACKENDS:
@@ -118,13 +118,21 @@ def run_filter(model, y, u=None, *, method: str = "bootstrap", n_particles: int 
         if m.family == "mpf":
             from .marginalized import run_mpf
 
-            return run_mpf(model, y, u, n_particles=n_particles, resampling=resampling, backend=backend,
-                           seed=seed, dtype=dtype, ess_threshold=ess_threshold)
+            return _named(model, run_mpf(model, y, u, n_particles=n_particles, resampling=resampling,
+                                         backend=backend, seed=seed, dtype=dtype, ess_threshold=ess_threshold))
         if m.family == "kalman":
             from .marginalized import run_kalman
 
-            return run_kalman(model, y, u, backend=backend)
+            return _named(model, run_kalman(model, y, u, backend=backend))
         from .guided import run_guided
 
-        return run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
-                          ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed)
+        return _named(model, run_guided(model, y, u, n_particles=n_particles, resampling=resampling,
+                                        ess_threshold=ess_threshold, backend=backend, dtype=dtype, seed=seed))
+
+
+def _named(model, res: FilterResult) -> FilterResult:
+    """``res`` with the model's ``state_names`` in ``info``, which :meth:`FilterResult.to_dataframe`
+    names its columns by (ob3's x1..x4 were x0..x3 there)."""
+    if getattr(model, "state_names", None):
+        res.info.setdefault("state_names", [str(s) for s in model.state_names])
+    return res

@@ -253,5 +253,9 @@ def test_a_result_prints_in_one_line_and_names_its_columns():
     res = pfbench.run_filter(model, model.simulate(300, seed=1).y, n_particles=10, backend="numpy")
     assert len(repr(res)) < 300 and repr(res).startswith("FilterResult(method='bootstrap'")
     assert list(res.to_dataframe("pos").columns[1:3]) == ["pos", "pos_var"]
+    assert list(res.to_dataframe().columns[1:3]) == ["x", "x_var"]   # ob1's state_names, by default
+    ob3 = models.get("ob3")
+    res3 = pfbench.run_filter(ob3, ob3.simulate(3, seed=1).y, n_particles=10, backend="numpy")
+    assert list(res3.to_dataframe().columns[1::2][:4]) == list(ob3.state_names)   # were x0..x3
     with pytest.raises(ValueError, match="2 names for 1 states"):
         res.to_dataframe(["a", "b"])
