@@ -70,29 +70,40 @@ def estimate(model_name, steps, particles, precision, method, filters, resamplin
     if as_json:
         click.echo(to_json(r, indent=2, default=float))
         return
-    click.echo(_format(r))
+    click.echo(_format(r, model_name, paper_board=board_power_w is None))
+    if cycles_file and r["calibrated"]:
+        click.echo(f"note: the board layer re-fits its efficiency to [Embedded] Table 2 with {cycles_file}'s cycles "
+                   f"({r['efficiency']:.3f}), so it keeps the paper's times; --basis table prices the file's "
+                   "cycles alone")
 
 
-def _format(r: dict) -> str:
+def _format(r: dict, label: str, paper_board: bool) -> str:
+    """The text of ``mcu estimate``: ``label`` names the model as the user gave it (``ob3:v4``);
+    ``paper_board``: the board power is the default one (on the M4, [Embedded] Table 3's)."""
     mem = r["memory"]
     lines = [
-        f"{r['model']} {r['method']}" + (f" (N_f={r['n_filters']})" if r["method"] == "multipdf" else "")
-        + f", M={r['n_steps']} steps, N_p={r['n_particles']} particles, {r['precision']} on "
+        f"{label} {r['method']}" + (f" (N_f={r['n_filters']})" if r["method"] == "multipdf" else "")
+        + f", M={r['n_steps']} steps, N_p={r['n_particles']} particles"
+        + (f" ({r['n_particles_requested']} asked: {r['n_filters']} sub-filters of "
+           f"{r['n_particles'] // r['n_filters']})" if r["n_particles_requested"] != r["n_particles"] else "")
+        + f", {r['precision']} on "
         f"{r['core_name']} ({r['chip']}) @ {r['clock_mhz']:g} MHz",
         f"predicted time : {r['predicted_ms']:,.1f} ms ({r['step_us']:,.1f} us per step)"
         + (f"  (instruction-table {r['raw_ms']:,.1f} ms x efficiency {r['efficiency']:.3f}: {r['efficiency_basis']})"
            if r["calibrated"] else f"  ({r['efficiency_basis']})" if r.get("basis") == "code"
            else "  (uncalibrated)"),
         f"cycles/particle-step: {r['cycles_per_particle_step']:,.0f}",
-        f"layers         : board {r['board_ms']:,.1f} ms (the paper's hand-written C, [Embedded] Table-2 "
-        f"efficiency) | code {r['code_ms']:,.1f} ms (pfbench's compiled harness + model, zero wait "
-        f"states; checked by `pfbench mcu emulate --model`)",
+        f"layers         : board {r['board_ms']:,.1f} ms (hand-written C at the [Embedded] Table-2 "
+        f"efficiency of the paper's board) | code {r['code_ms']:,.1f} ms (pfbench's compiled harness + model, "
+        f"zero wait states; what `pfbench mcu emulate --model` runs: bootstrap, systematic)",
         f"energy (MCU)   : {r['energy_mcu_wh']:.3g} Wh, {r['energy_per_step_uj']:.3g} uJ per step "
-        f"({r['mcu_current_ma']:.3g} mA x {r['mcu_voltage_v']:g} V)",
+        f"({r['mcu_current_ma']:.3g} mA x {r['mcu_voltage_v']:g} V"
+        + (", an assumed run current: see cores.json)" if r["mcu_current_assumed"] else ")"),
     ]
     if r["energy_board_wh"] is not None:
-        lines.append(f"energy (board) : {r['energy_board_wh']:.3g} Wh at {r['board_power_w']:g} W board power "
-                     "([Embedded] Table 3 reports this one)")
+        lines.append(f"energy (board) : {r['energy_board_wh']:.3g} Wh at {r['board_power_w']:g} W board power"
+                     + (" (the figure [Embedded] Table 3 reports, of its board)" if r["core"] == "m4" and paper_board
+                        else ""))
     lines += [
         f"RAM            : {mem['bytes'] / 1024:.1f} kB of {mem['usable_bytes'] / 1024:.0f} kB usable "
         f"({mem['ram_bytes'] / 1024:.0f} kB {mem['chip']}); largest N_p that fits: {mem['max_particles']}",
@@ -137,14 +148,15 @@ def fit(model_name, steps, period_us, method, filters, resampling, core_names, p
     name, model_params = models.parse_spec(model_name, parse_key_values(params, "--param"))
     if method != "multipdf" and filters != 1:
         raise click.BadParameter(f"--filters {filters} needs --method multipdf", param_hint="'--filters'")
-    keys = [_cores.get(c).key for c in core_names] or None
+    keys = list(dict.fromkeys(_cores.get(c).key for c in core_names)) or None
     r = _fit(name, steps, period_us, method=method, n_filters=filters, resampling=resampling, cores=keys,
              precisions=tuple(precisions) or ("float", "double"), history=history, model_params=model_params,
              basis=basis)
     if as_json:
         click.echo(to_json(r, indent=2, default=float))
         return
-    click.echo(f"{r['model']} {r['method']}: largest N_p per step period {r['period_us']:g} us "
+    click.echo(f"{model_name} {r['method']}" + (f" (N_f={filters})" if method == "multipdf" else "")
+               + f": largest N_p per step period {r['period_us']:g} us "
                f"({r['rate_hz']:g} Hz){' with M-step history in RAM' if r['history'] else ''}; "
                f"time basis: {r['basis']}")
     click.echo(f"{'core':<11}{'chip':<13}{'MHz':>5}{'RAM kB':>8} {'prec':<7}{'N_p':>8} {'limit':<6}"

@@ -47,9 +47,10 @@ class Core:
     def current_ma(self, clock_mhz: float | None = None) -> float:
         """Active run current at ``clock_mhz`` (default: the chip's typical clock), mA.
 
-        Datasheet run currents are close to linear in f_HCLK; the one published point is
-        scaled linearly (an assumption that overestimates slightly at low clocks, where the
-        static part dominates less than the dynamic one)."""
+        Datasheet run currents are close to linear in f_HCLK; the one published point is scaled
+        through the origin, leaving out the static part: below that clock the current is
+        underestimated, above it overestimated, and the energy per step comes out the same at
+        every clock."""
         return self.current_ma_per_mhz * float(clock_mhz or self.clock_mhz)
 
     def power_w(self, clock_mhz: float | None = None) -> float:

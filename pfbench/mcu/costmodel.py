@@ -229,12 +229,15 @@ def memory_bytes(model, n_particles: int, n_steps: int, precision: str, history:
 
 
 def check_memory(model, n_particles: int, n_steps: int, precision: str, history: bool = True,
-                 core=None) -> dict:
+                 core=None, history_flag: str | None = "--no-history") -> dict:
+    """:func:`memory_bytes`, or an InputError if it does not fit, with the largest N_p that does;
+    ``history_flag``: the caller's option that leaves the history out (None: it has none)."""
     mem = memory_bytes(model, n_particles, n_steps, precision, history, core)
     if not mem["fits"]:
         extra = (f" + {mem['history_bytes'] / 1024:.1f} kB history for {n_steps} steps" if history else "")
         hint = (f"the largest N_p that fits is {mem['max_particles']}" if mem["max_particles"] > 0 else
-                "the per-step history alone does not fit: reduce --steps or use --no-history")
+                "the per-step history alone does not fit: reduce --steps"
+                + (f" or use {history_flag}" if history_flag else ""))
         raise InputError(
             f"{n_particles} particles at {precision} need {mem['bytes'] / 1024:.1f} kB "
             f"({mem['particle_bytes'] / 1024:.1f} kB particle arrays{extra}) but the {mem['chip']} has "
@@ -450,8 +453,8 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
     table.check_precision(precision)
     mdl = models.get(model, **(model_params or {})) if isinstance(model, str) else model
     counting._validate(mdl, n_steps, n_particles, method, n_filters, resampling)
-    mem = (check_memory if memory else memory_bytes)(mdl, int(n_particles), int(n_steps), precision, history,
-                                                       c)
+    requested, n_particles = int(n_particles), particles_used(n_particles, method, n_filters)
+    mem = (check_memory if memory else memory_bytes)(mdl, n_particles, int(n_steps), precision, history, c)
     if basis is None:
         basis = "board" if calibrated else "table"
     if basis not in ("board", "code", "table"):
@@ -482,7 +485,8 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
     e_board = None if power is None else power * ms / 1e3 / 3600.0
     return {
         "model": getattr(mdl, "name", str(model)), "method": method, "n_filters": int(n_filters),
-        "n_steps": int(n_steps), "n_particles": int(n_particles), "resampling": resampling,
+        "n_steps": int(n_steps), "n_particles": int(n_particles), "n_particles_requested": requested,
+        "resampling": resampling,
         "precision": precision, "core": c.key, "core_name": c.name, "chip": c.chip, "fpu": c.fpu,
         "clock_mhz": clock, "predicted_ms": ms, "raw_ms": raw_ms, "step_us": 1e3 * ms / int(n_steps),
         "efficiency": eff, "efficiency_basis": ebasis, "calibrated": bool(calibrated), "basis": basis,
@@ -495,6 +499,7 @@ def predict(model="ob1", n_steps: int = 1000, n_particles: int = 1000, precision
         "cycles": eff * total, "raw_cycles": total, "cycles_per_particle_step": eff * total / ps,
         "board_power_w": power, "mcu_power_w": mcu_w,
         "mcu_current_ma": c.current_ma(clock), "mcu_voltage_v": c.voltage_v,
+        "mcu_current_assumed": c.sources.get("power", "").startswith("assumed"),
         "energy_wh": e_board if e_board is not None else e_mcu,
         "energy_basis": ("board power x time ([Embedded] Table 3)" if e_board is not None
                          else "MCU active current x voltage x time (datasheet, see cores.json)"),
@@ -537,6 +542,23 @@ def _step_model(model, n_steps, precision, method, n_filters, resampling, model_
     a = us[0] - b * points[0]
     lin = abs(a + b * points[2] - us[2]) / us[2]
     return a, b, lin
+
+
+def _assumed_currents(rows: list) -> str:
+    """How many of the rows' cores have a run current marked assumed in cores.json, as "k of n"."""
+    keys = dict.fromkeys(r["core"] for r in rows)
+    k = sum(_cores.get(key).sources.get("power", "").startswith("assumed") for key in keys)
+    return f"{k} of {len(keys)}"
+
+
+def particles_used(n_particles: int, method: str, n_filters: int) -> int:
+    """The particles a run of ``n_particles`` has: MultiPDF gives each of its N_f sub-filters
+    round(N_p / N_f) (:func:`pfbench.filters.particle.split_particles`), so it runs a multiple of N_f;
+    the cost, the RAM and :func:`fit`'s answer are of that many."""
+    from ..filters.particle import split_particles
+
+    return split_particles(int(n_particles), int(n_filters)) * int(n_filters) if method == "multipdf" else int(
+        n_particles)
 
 
 def fit_points(n_filters: int) -> tuple:
@@ -591,6 +613,8 @@ def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str
             mem = memory_bytes(mdl, 1, n_steps, prec, history, c)
             n_ram = mem["max_particles"]
             n_p = max(min(n_time, n_ram), 0)
+            if method == "multipdf":  # sub-filters of equal size: a multiple of N_f (particles_used)
+                n_p -= n_p % int(n_filters)
             if n_p < max(int(n_filters), 1):
                 binding = "time" if n_time <= n_ram else "ram"
                 n_p = 0
@@ -614,9 +638,19 @@ def fit(model="ob1", n_steps: int = 1000, period_us: float = 1000.0, method: str
                       "binding names the limit reached first ('time' or 'ram'); 0 = not even the "
                       "minimum fits",
                       "energy_per_step_uj: MCU active current x voltage x per-step time at that N_p "
-                      "(datasheet figures in cores.json, several marked assumed)",
+                      f"(run currents from cores.json; {_assumed_currents(rows)} of the rows' cores marked "
+                      "assumed there, not read from a datasheet in this project)",
+                      *([] if history else ["RAM: the filter's arrays only (a deployed filter keeps no "
+                                            "history); `mcu estimate` counts the M-step history too unless "
+                                            "--no-history, and --history counts it here"]),
+                      *([f"the board layer's leave-one-out error on [Embedded] Table 2 reaches "
+                         f"{calibrate()['max_abs_loo_error']:.0%} (`pfbench mcu calibrate`): an N_p that fills the "
+                         "period to the last percent may miss it on a board; leave that margin"]
+                        if basis == "board" else []),
                       EFFICIENCY_NOTE + " for every core but the M4" if basis == "board" else
-                      f"time basis: {basis} ({CODE_BASIS if basis == 'code' else 'instruction-table cycles'})"]}
+                      f"time basis: {basis} ({CODE_BASIS if basis == 'code' else 'instruction-table cycles'})"
+                      + ("; its constants were derived on the Cortex-M4 and are applied unchanged to the other "
+                         "cores" if basis == "code" else "")]}
 
 
 if __name__ == "__main__":  # python -m pfbench.mcu.costmodel --derive [--write]

@@ -129,3 +129,23 @@ def test_fit_with_more_sub_filters_than_the_counted_particles():
     assert r.exit_code == 0, r.output
     row, = json.loads(r.stdout)["rows"]
     assert row["max_particles"] >= 101
+
+
+def test_fit_and_estimate_agree_for_multipdf():
+    """MultiPDF runs round(N_p/N_f) particles per sub-filter: fit answered 355 for N_f = 4 (which
+    runs as 356 and misses the 1 ms period by 0.2 %) and estimate priced 356 under the header 355.
+    Catches the answer not a multiple of N_f, and the particles used not said."""
+    r = cm.fit("ob1", 1000, 1000.0, method="multipdf", n_filters=4, cores=["m4"], precisions=("float",))
+    n_p = r["rows"][0]["max_particles"]
+    assert n_p % 4 == 0
+    est = cm.predict("ob1", 1000, n_p, "float", method="multipdf", n_filters=4)
+    assert est["step_us"] <= 1000.0 and est["n_particles"] == n_p
+    out = _run(["estimate", "--method", "multipdf", "--filters", "4", "--particles", str(n_p + 3)])
+    assert f"N_p={n_p + 4} particles ({n_p + 3} asked: 4 sub-filters of {(n_p + 4) // 4})" in out.stdout
+
+
+def test_emulate_names_no_flag_it_lacks():
+    """`mcu emulate` refused a run whose history alone filled the chip with "use --no-history", an
+    option it does not have. Catches the estimate's hint reused."""
+    r = _run(["emulate", "--model", "ob1", "--core", "m0plus", "-M", "100000"])
+    assert r.exit_code == 2 and "reduce --steps" in r.output and "--no-history" not in r.output, r.output
