@@ -263,11 +263,14 @@ def fig8(ctx):
 #: the Fig. 9 sentence of [Embedded] §5.2, scored once (here)
 FIG9_CLAIM = ("One can confirm the conclusions drawn regarding the reduced errors for the y_m2 chart "
               "(see Figure 9)")
-FIG9_PRIMARY = ("model (12) keeps its eq. 13 error when N_p is reduced (1000 -> 100): the 'conclusions drawn' "
-                "are those of the paragraph before ('For Equation (12), the estimation also works correctly when "
-                "the number of particles is reduced'), and the same paragraph says model (10) 'primarily follows "
-                "the measured signal' while (12) 'increases slowly', so (12) having the lower eq. 13 error would "
-                "contradict the paper's own text")
+FIG9_PRIMARY = ("the literal reading: the y_m2 chart (model (12)) shows the reduced errors, i.e. (12) has the "
+                "lower eq. 13 error than model (10), mean over the B-1, B2-1 and B3-1 runs. The paragraph before "
+                "says (10) 'primarily follows the measured signal' while (12) 'increases slowly', and 'the "
+                "conclusions drawn' may be its other sentence ('For Equation (12), the estimation also works "
+                "correctly when the number of particles is reduced'): that reading is a sensitivity row")
+#: "works correctly when the number of particles is reduced": its eq. 13 error within this fraction of
+#: the error at N_p = 1000 (our reading; the half sensor step used before was 68 % of the error itself)
+FIG9_SAME = 0.10
 
 
 @recipe("embedded:fig9", aliases=("fig9",), title="Estimation errors eps(k) of B1, B2-1, B3-1 (Fig. 9)",
@@ -313,35 +316,34 @@ def fig9(ctx):
     ctx.write_table("fig9_errors", pd.DataFrame(rows))
     ctx.compare("model (12) on the B-1 log: RMS eps at N_p = 1000 / 100", ours=f"{m2_1000.mean():.4f} / "
                 f"{m2_100.mean():.4f}", unit="°C", paper="works correctly when N_p is reduced (§5.2)")
-    margin = HALF_STEP
-    primary = no_dependence(m2_100 - m2_1000, margin, what="RMS eps of (12), N_p = 100 - N_p = 1000 (same log)")
+    margin = FIG9_SAME * float(m2_1000.mean())
+    pooled = {k: np.mean([_per_seed(accs[t], "m1", k) - _per_seed(accs[t], "m2", k) for t in accs], axis=0)
+              for k in ("rms_eps", "rms_true")}
+    primary = direction(pooled["rms_eps"], +1, what="RMS eps m1 - m2")
     others = [
-        Reading("the paper's literal comparison across its experiments: (12) in B3-1 (N_p = 100) vs B-1 (N_p = 1000), "
+        Reading(f"model (12) keeps its eq. 13 error when N_p is reduced (1000 -> 100), same log: within "
+                f"{FIG9_SAME:.0%} of its error at N_p = 1000", "RMS eps of (12), N_p = 100 - N_p = 1000, per PF seed",
+                no_dependence(m2_100 - m2_1000, margin, what="RMS eps of (12), N_p = 100 - N_p = 1000 (same log)")),
+        Reading("as the row above across the paper's experiments: (12) in B3-1 (N_p = 100) vs B-1 (N_p = 1000), "
                 "two different runs", "RMS eps of (12), B3-1 - B-1, per PF seed",
                 no_dependence(_per_seed(accs["B3-1"], "m2", "rms_eps") - m2_1000, margin,
                               what="RMS eps of (12), B3-1 - B-1")),
     ]
-    pooled = {k: np.mean([_per_seed(accs[t], "m1", k) - _per_seed(accs[t], "m2", k) for t in accs], axis=0)
-              for k in ("rms_eps", "rms_true")}
-    others.append(Reading("model (12) has the lower eq. 13 error than model (10) (contradicts the paper's own text: "
-                          "(10) 'primarily follows the measured signal')",
-                          "RMS eps m1 - m2, mean over B-1/B2-1/B3-1, per PF seed",
-                          direction(pooled["rms_eps"], +1, what="RMS eps m1 - m2")))
     if np.all(np.isfinite(pooled["rms_true"])):
         others.append(Reading("model (12) has the lower error against the true (unquantised) sensor temperature "
                               "(simulation only)", "RMS error vs truth m1 - m2, mean over the three runs, per PF seed",
                               direction(pooled["rms_true"], +1, what="RMS true error m1 - m2")))
     ctx.claim(FIG9_CLAIM, "[Embedded] §5.2, Fig. 9",
-              "RMS eq. 13 error of model (12) at N_p = 100 minus at N_p = 1000, same log, per PF seed [°C]",
-              primary, paper="no growth (within ±half a sensor step)", reading=FIG9_PRIMARY, others=others,
-              note=f"equivalence margin ±{margin:.4g} °C: the quantised measurement y itself carries up to half a "
-                   "DS18B20 step of rounding error, so a smaller change of eps cannot be told on the paper's plots")
+              "RMS eq. 13 error of model (10) minus that of model (12), mean over B-1/B2-1/B3-1, per PF seed [°C]",
+              primary, paper="> 0 (the y_m2 chart has the reduced errors)", reading=FIG9_PRIMARY, others=others,
+              note=f"the N_p-reduction rows' equivalence margin is ±{margin:.4g} °C, {FIG9_SAME:.0%} of (12)'s "
+                   "error at N_p = 1000 (our reading of 'works correctly')")
     ctx.extra["errors"] = rows
     ctx.note("Fig. 9: with the Table A2 setting (sigma_v^2 = 0.010 on both states of eq. 10) model (10) is nearly a "
              "copy of the measurement, so its eq. 13 error is the smaller one, while model (12) (sigma_v1^2 = 1e-6) is "
-             "smooth and lags when the mode switches; this is what the paper's text says of the two models, so the "
-             "Fig. 9 sentence is scored as the paper's preceding conclusion (model (12) keeps working with fewer "
-             "particles) and the 'lower error' readings are shown beneath it.")
+             "smooth and lags when the mode switches; this is what the paper's text says of the two models. The Fig. 9 "
+             "sentence is scored on its literal reading ((12) has the lower error); the paper's preceding conclusion "
+             "(model (12) keeps working with fewer particles) is a sensitivity row beneath it.")
 
 
 @recipe("embedded:fig10", aliases=("fig10",), title="Heating/normal two-position control, N_p = 1000 (Fig. 10)",

@@ -332,7 +332,7 @@ def _make(name, model, params, particles, filters, rq, rf, claim, title):
                      "rows; the plot and the N_f summary show the first factor, our original reading, "
                      "because no source value replaces it. x_d, the reference and the prior are our choices; the truth "
                      "runs in closed loop with a PD controller (pfbench/models/ob5.py). aRMSE mixes "
-                     "units (m, m/s, A) and is dominated by the velocity x2 and the coil currents.")
+                     "units (m, m/s, A).")
         ctx.note(f"{name}: grid N_p = {list(particles)}, N_f = {list(filters)}, M = {steps} steps, "
                  "systematic resampling, same ground truth for every configuration of a run (claims "
                  "use per-run paired differences); the paper's exact N_p grid and M were not stated "

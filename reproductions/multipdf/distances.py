@@ -90,15 +90,26 @@ def table6(ctx):
     ctx.claim("As one can see in Table 6, the results from parallel filters provided higher mean values and "
               "standard deviations than from single ones, but statistics for estimate from MultiPDF PF are "
               "noticeably smaller", where,
-              f"per sub-filter PF[1..3]: mean and std of d_k minus those of d_MultiPDF, over batches of {BATCH} steps",
-              all_cases([o for o, _ in means + stds], 1.0, "sub-filter statistic larger than MultiPDF's",
-                         "each of the three sub-filters, mean and standard deviation as the sentence says"),
+              f"per sub-filter PF[1..3]: std of d_k minus std of d_MultiPDF, over batches of {BATCH} steps",
+              all_cases([o for o, _ in stds], 1.0, "sub-filter standard deviation larger than MultiPDF's",
+                        "each of the three sub-filters"),
               paper="> 0 for each",
-              reading="both statistics the sentence names (mean and standard deviation), for each sub-filter "
-                      "- primary because the sentence says 'higher mean values and standard deviations'",
-              others=[Reading("the means only", "mean d_PF[k] - mean d_MultiPDF, k = 1..3",
-                              all_cases([o for o, _ in means], 1.0, "sub-filter mean larger",
-                                         "each of the three sub-filters"))])
+              reading="the standard deviations, for each sub-filter - primary because the means follow from "
+                      "the triangle inequality (a claim by construction, below); 'noticeably' names no size, "
+                      "so only the direction is tested",
+              others=[Reading("both statistics the sentence names", "mean and std of d_PF[k] minus those of "
+                              "d_MultiPDF, k = 1..3",
+                              all_cases([o for o, _ in means + stds], 1.0, "sub-filter statistic larger",
+                                        "each of the three sub-filters, mean and standard deviation"))])
+    sub_mean = float(np.mean([np.mean(d[k]) for k in subs]))
+    ctx.claim("the mean distance of the MultiPDF estimate is below its sub-filters' (the mean part of the "
+              "sentence above)", where, "mean d_MultiPDF vs the sub-filters' mean d (averaged over k = 1..3)",
+              holds(float(np.mean(d["MultiPDF"])) <= sub_mean,
+                    f"mean d_MultiPDF {np.mean(d['MultiPDF']):.4g} <= the sub-filters' {sub_mean:.4g}"),
+              paper="smaller", kind=CONSTRUCTION,
+              note="the MultiPDF estimate is the mean of its N_f exchangeable sub-filters' estimates, so by the "
+                   "triangle inequality its distance is at most their mean distance at every step (and each "
+                   "sub-filter's expected distance is the same): true whatever the data")
     ctx.claim("The bootstrap filter provided somewhat worse results", where,
               f"mean d_BF - d_MultiPDF (batch means of {BATCH} steps)",
               direction(batch_means(d["BF"] - d["MultiPDF"]), +1, "distance difference"), paper="> 0")

@@ -45,13 +45,15 @@ def table4(ctx):
         pf_cols = sorted((c for c in wide.columns if c[0] == "multipdf"), key=lambda c: wide[c].mean())
         mpf = wide[("mpf", 100, 1)]
         if r["object"] == "Ob3 v1":
-            # "smaller than most of the values": below the median-ranked MultiPDF/BF configuration
-            ref = pf_cols[len(pf_cols) // 2]
+            # "smaller than most of the values": below more than half of the MultiPDF/BF configurations,
+            # so below the one ranked (n - 1) // 2 by mean aRMSE (with n = 4: the second best, beating 3 of 4;
+            # the third best beat 2 of 4, half)
+            ref = pf_cols[(len(pf_cols) - 1) // 2]
             ctx.claim("the estimation quality was improved only for Ob3 in version (v1) ... Only for this "
                       "plant, the quality index in Table 4 is smaller than most of the values presented in "
                       "the corresponding Fig. 5", "[MultiPDF] §7, Table 4", f"Ob3 v1: aRMSE(MPF) - "
-                      f"aRMSE(MultiPDF N_p={ref[1]}, N_f={ref[2]}, the median-ranked of {len(pf_cols)} "
-                      "configurations)", direction((mpf - wide[ref]).to_numpy(), -1, "aRMSE difference"),
+                      f"aRMSE(MultiPDF N_p={ref[1]}, N_f={ref[2]}, ranked {(len(pf_cols) - 1) // 2 + 1} of "
+                      f"{len(pf_cols)}: beating it beats more than half)", direction((mpf - wide[ref]).to_numpy(), -1, "aRMSE difference"),
                       paper="< 0")
         else:
             ref = pf_cols[-1]  # the worst MultiPDF/BF configuration by mean aRMSE

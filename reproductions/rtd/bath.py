@@ -378,5 +378,5 @@ def fig7(ctx):
         ctx.note(f"fig7: the predictors are calibrated first (the chapter's §8), yet the best Q/R pair holds the "
                  f"response inside the layer for only {r['cal'].fraction:.0%} of the calibration run's transients: a "
                  "single RC lag does not follow the two-pole response (fast pole -2.42, slow -0.07, a near "
-                 "pole-zero cancellation), so both predictors fall on the same side of it for much of each "
-                 "transient (reference = noise-free response when simulated, the readings with --data).")
+                 "pole-zero cancellation), which is our reading of why, not a computed result (reference = "
+                 "noise-free response when simulated, the readings with --data).")

@@ -34,7 +34,9 @@ def poles(ctx):
               f"(root {i + 1}; the other within {dev[1 - i]:.2f} of its band)",
               close_to(float(p[i]), rtd.PAPER_POLES[i], tols[i],
                        why=f"half a unit of the chapter's 4th decimal, {tols[i]:.1e} relative"),
-              paper=f"{rtd.PAPER_POLES[0]}, {rtd.PAPER_POLES[1]}")
+              paper=f"{rtd.PAPER_POLES[0]}, {rtd.PAPER_POLES[1]}", kind=SETUP,
+              note="the roots of the chapter's own printed polynomial: a check of its arithmetic (as rtd:fig3 "
+                   "checks the polynomial's degree), which no data of ours bears on")
     ctx.claim("Thus our system behaves like two first order systems in series", "[RTD] §6",
               "imaginary parts and signs of the eq. 52 poles",
               holds(bool(np.all(np.isreal(np.roots(rtd.TF_DEN))) and np.all(p < 0)),
@@ -103,12 +105,14 @@ def poles(ctx):
     rel_c = abs(p_chapter - p_care) / abs(p_care)
     rel_d = abs(p_chapter - p_closed) / abs(p_closed)
     code = "[RTD] §6.1, microcontroller code ('Solution to the Riccati equation')"
-    disc = holds(rel_d <= 1e-6, f"the code's P_inf equals the scalar DARE solution of its own discrete loop "
-                                f"P = A P A + B Q B to 1e-6 relative (they differ by {rel_d:.1%})")
+    disc = holds(rel_d <= 1e-6, f"the code's P_inf equals the scalar DARE solution of pfbench's discrete RC model "
+                                f"(zero-order hold, a = exp(-Ts/tau), Q entering through b = 1 - a, tau fitted to a "
+                                f"simulated step) to 1e-6 relative (they differ by {rel_d:.1%}); the chapter's "
+                                "listing discretises otherwise, so the gap depends on that choice")
     cont = holds(rel_c <= 1e-9, f"it equals scipy's continuous-time ARE root 2FP - H^2P^2/R + Q = 0 (F = -1/tau, "
                                 f"H = 260, Q = R = 1) to 1e-9 relative (ours {rel_c:.2g})")
     ctx.claim("// Solution to the Riccati equation. (the microcontroller code's P_inf = (SQ + SR)/(H*H))", code,
-              "the code's P_inf against the discrete-time ARE of its own loop P = A P A + B Q B", disc,
+              "the code's P_inf against the discrete-time ARE of pfbench's discrete RC model", disc,
               paper="DARE solution",
               reading=("the discrete-time ARE: the chapter says its implemented predictors solve the DARE (Fig. 6 "
                        "caption 'by solving the DARE equation'; §4.2 'our own function to solve the Discrete "
@@ -118,4 +122,5 @@ def poles(ctx):
     ctx.write_table("poles", pd.DataFrame(rows))
     ctx.note("poles: the chapter prints no numbers for the DARE solution, the gain or the RC constant, so only "
              "the poles have a paper value; the chapter's Arduino Riccati formula is the continuous-time scalar "
-             "ARE root, which differs from the discrete DARE it feeds into the discrete loop.")
+             "ARE root, which differs from the DARE of pfbench's discretisation of the RC filter (a discretisation "
+             "of ours: the chapter's listing uses another).")

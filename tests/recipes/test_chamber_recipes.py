@@ -52,22 +52,24 @@ def test_each_sentence_is_scored_in_one_recipe_only(tmp_path):
     assert len(fig9) == 1 and "reduced errors for the y_m2 chart" in fig9[0][0]
 
 
-def test_fig9_primary_reading_is_model_12_with_fewer_particles(tmp_path):
-    # two PF seeds: the primary reading pairs, per seed, model (12)'s RMS eps at N_p = 100 and 1000 on the same
-    # (B-1) log; its mean is the difference of the two recorded seed averages (catches a claim fed one number or
-    # the wrong pair); the 'm2 lower than m1' reading is a sensitivity row and, on our plant, m1 is lower
+def test_fig9_primary_reading_is_the_literal_one(tmp_path):
+    # the literal reading is primary: the y_m2 chart (model (12)) has the reduced errors, (10) - (12) > 0, over the
+    # three runs per PF seed; on our plant model (10) is lower, so it cannot agree (it was once scored on the
+    # other reading, (12) keeping its error with fewer particles, with a margin of 68 % of that error). That
+    # reading is a sensitivity row, its margin 10 % of (12)'s error at N_p = 1000; its mean pairs, per seed,
+    # (12)'s RMS eps at N_p = 100 and 1000 on the B-1 log (catches a row fed one number or the wrong pair)
     ctx = recipes.run(recipes.resolve("fig9"), out_root=tmp_path, quiet=True, options={"pf_seeds": "2"}, seed=0)
     err = pd.read_csv(tmp_path / "embedded" / "fig9_errors.csv")
     (c,) = _claims(ctx)
-    assert c["kind"] == FINDING and c["n"] == 2 and "works correctly when the number of particles is reduced" in c["reading"]
-    m2 = err[err.model == "m2"].set_index("test").rms_eps
-    assert c["ours"] == pytest.approx(m2["B-1 log at N_p = 100"] - m2["B-1"], abs=1e-12)
-    assert c["band"] == pytest.approx([-chamber.RESOLUTION / 2, chamber.RESOLUTION / 2])
-    lower = [o for o in c["sensitivity"] if o["reading"].startswith("model (12) has the lower eq. 13 error")]
-    assert len(lower) == 1
+    assert c["kind"] == FINDING and c["n"] == 2 and c["reading"].startswith("the literal reading")
     g = err[err.test.isin(["B-1", "B2-1", "B3-1"])].groupby("model").rms_eps.mean()
-    assert lower[0]["ours"] == pytest.approx(g["m1"] - g["m2"], abs=1e-12)
-    assert lower[0]["ours"] < 0 and lower[0]["verdict"] in ("disagree", "undecided")
+    assert c["ours"] == pytest.approx(g["m1"] - g["m2"], abs=1e-12)
+    assert c["ours"] < 0 and c["verdict"] in ("disagree", "undecided")
+    fewer = [o for o in c["sensitivity"] if o["reading"].startswith("model (12) keeps its eq. 13 error")]
+    assert len(fewer) == 1
+    m2 = err[err.model == "m2"].set_index("test").rms_eps
+    assert fewer[0]["ours"] == pytest.approx(m2["B-1 log at N_p = 100"] - m2["B-1"], abs=1e-12)
+    assert fewer[0]["band"] == pytest.approx([-0.1 * m2["B-1"], 0.1 * m2["B-1"]])
     assert c["depends_on_reading"] == any(o["verdict"] != c["verdict"] for o in c["sensitivity"])
 
 

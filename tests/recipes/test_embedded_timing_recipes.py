@@ -86,7 +86,8 @@ def test_mcu_claims_with_a_stand_in_emulator(tmp_path, monkeypatch, scale, verdi
     assert ratio["band"] == pytest.approx([pub[-1] * (1 - tol), pub[-1] * (1 + tol)])
     assert ratio["interval"] == pytest.approx([scale * pub[-1] * 0.97 / 1.03, scale * pub[-1] * 1.03 / 0.97])
     assert ratio["verdict"] == verdict and ratio["kind"] == FINDING
-    assert claims["The highly optimized version D(O) is much more efficient than the standard D(S)"]["verdict"] == "agree"
+    much = claims["The highly optimized version D(O) is much more efficient than the standard D(S)"]
+    assert much["verdict"] == "agree" and much["kind"] == CONSTRUCTION   # soft double vs FPU float: by construction
 
 
 def test_mcu_claims(tmp_path):

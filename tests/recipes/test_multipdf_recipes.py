@@ -59,6 +59,14 @@ def test_recipe_tiny(name, out_root):
     if name in ("fig11", "fig13"):   # the paper's program's timings: never scored from our kernels
         [c] = [c for c in ctx.claims if "6.29 s" in c["claim"] or "up to 7 times" in c["claim"]]
         assert c["verdict"] == verdicts.NOT_REPRODUCIBLE
+    if name == "fig13":  # our kernels on this shared host: a verdict that followed the host's load
+        [c] = [c for c in ctx.claims if c["claim"].startswith("With the increasing number of threads")]
+        assert c["verdict"] == verdicts.NOT_REPRODUCIBLE
+    if name == "table6":  # the mean part follows from the triangle inequality: by construction, not scored
+        kinds = {c["claim"][:40]: c["kind"] for c in ctx.claims}
+        assert kinds["the mean distance of the MultiPDF estima"] == CONSTRUCTION
+        [c] = [c for c in ctx.claims if c["claim"].startswith("As one can see in Table 6")]
+        assert c["quantity"].startswith("per sub-filter PF[1..3]: std of d_k")
 
 
 def test_each_sentence_is_scored_once_across_the_recipes(out_root):
