@@ -243,7 +243,7 @@ def test_same_text_types_the_same_through_every_flag(tmp_path, monkeypatch, prob
 
     got = {}
     monkeypatch.setattr(costmodel, "predict", lambda *a, **k: got.update(k["model_params"]) or {})
-    monkeypatch.setattr("pfbench.mcu.cli._format", lambda r: "")
+    monkeypatch.setattr("pfbench.mcu.cli._format", lambda *a, **k: "")
     r = _invoke("mcu", "estimate", "--model", "ob4", *sum((["--param", t] for t in TEXTS), []))
     assert r.exit_code == 0, r.output
     flags["mcu estimate --param"] = got

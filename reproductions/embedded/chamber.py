@@ -455,8 +455,11 @@ def _grid_claims(ctx, df: pd.DataFrame, seeds: dict) -> None:
                         paper="worse than tests 1-4", note=f"worst of tests 1-4: {float(good.rms_true.max()):.4f}")
 
     def worse(test, key):
+        """Worse by more than half a sensor step, the rounding the measurement itself carries: a
+        smaller excess cannot be seen on Fig. A1's plots (an excess of 0.002 °C, 3 % of a step, agreed)."""
         worst = np.max([seeds[t][key] for t in good.test], axis=0)
-        return direction(seeds[test][key] - worst, +1, what=f"{test} - worst of tests 1-4 ({key})")
+        return direction(seeds[test][key] - worst - HALF_STEP, +1,
+                         what=f"{test} - worst of tests 1-4 ({key}) - half a sensor step")
 
     for test, what in (("A-5", "If σv² is too high (A-5, σv² = 1.0), particles may not be able to match the actual "
                                 "measurements"),
@@ -467,11 +470,12 @@ def _grid_claims(ctx, df: pd.DataFrame, seeds: dict) -> None:
         others = []
         if other:
             others.append(Reading("worse against the true (unquantised) sensor temperature (simulation only)",
-                                  f"RMS error vs truth of {test} minus the worst of A/B/C-1..4, per PF seed",
-                                  worse(test, "rms_true")))
+                                  f"RMS error vs truth of {test} minus the worst of A/B/C-1..4 minus half a sensor "
+                                  "step, per PF seed", worse(test, "rms_true")))
         ctx.claim(what, "[Embedded] §6, Table A1, Fig. A1",
-                  f"RMS eq. 13 error of {test} minus the worst of A/B/C-1..4, per PF seed [°C]",
-                  worse(test, "rms_eps"), paper="> 0 (worse than every correct setting)",
+                  f"RMS eq. 13 error of {test} minus the worst of A/B/C-1..4 minus half a sensor step "
+                  f"({HALF_STEP:.4g} °C), per PF seed [°C]",
+                  worse(test, "rms_eps"), paper="> 0 (worse than every correct setting, visibly)",
                   reading="worse eq. 13 error (estimate vs the measurement), the sentence speaks of matching the "
                           "measurements and Fig. A1 plots estimate against measurement" if others else "",
                   others=others)
