@@ -158,9 +158,8 @@ def run_mpf(model, p, rng, xn, s, u, scheme, out) -> None:
         mod.run(*args[:-1], addresses)
 
 
-#: (driver, its arguments' type fingerprints) -> the int64 entry addresses of its calls by address,
-#: found once per process (compiled code keeps its address); a fingerprint, numba's dispatcher key, is far cheaper than
-#: ``numba.typeof`` of the groups
+#: (driver, its arguments' type fingerprints: numba's dispatcher key, far cheaper than ``numba.typeof``) ->
+#: the int64 entry addresses of its calls by address, found once per process (compiled code keeps its address)
 _CALL_ADDRESSES: dict = {}
 
 

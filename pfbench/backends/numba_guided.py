@@ -1,20 +1,14 @@
-"""The numba guided-filter kernel, the ``guided`` family's template: a model's own proposal, or the
-locally optimal one.
+"""The numba guided-filter kernel (the ``guided`` family's template): a model's own proposal, or the
+locally optimal one; the compiled twin of :mod:`pfbench.filters.guided` (same steps and draws).
 
-The compiled twin of :mod:`pfbench.filters.guided` (same steps, same draws in the same order, weights
-from :mod:`pfbench.backends.numba_weights`, resampling from :mod:`pfbench.backends.numba_resampling`
-bound as ``_resample``). :func:`pfbench.backends.kernels.build` runs it per model class with the
-model's functions bound to ``_initial``, ``_proposal``, ``_proposal_log_weight`` and
-``_predictive_log_likelihood``; a whole run takes the groups of :mod:`pfbench.backends.guided_work`.
-Each kind of proposal has its own step and run functions, so numba compiles only the model functions
-that kind uses. :func:`init` and the ``step_*`` functions also serve per-step calls from other
-compiled code (the closed-loop PMSM simulation, :func:`pfbench.filters.guided.step_functions`); they
-and :func:`_reweigh` are ``inline="always"``, so a caller is compiled and optimised once, not per level.
-
-A step function takes ``(p, rng, particles, y, u, t, settings, moments)``: the model's ``params()``,
-the generator, step ``t``'s measurement and input and the groups of :mod:`pfbench.backends.guided_work`
-(``particles`` updated in place, ``moments`` filled); it returns ``(loglik increment, N_eff, resampled,
-degenerate)``.
+:func:`pfbench.backends.kernels.build` runs it per model class with the model's functions bound to
+``_initial``, ``_proposal``, ``_proposal_log_weight`` and ``_predictive_log_likelihood``. Each kind of
+proposal has its own step and run functions, so numba compiles only the model functions it uses.
+:func:`init` and the ``step_*`` functions also serve per-step calls from compiled code (the PMSM closed
+loop, :func:`pfbench.filters.guided.step_functions`); they are ``inline="always"``, compiled once per caller.
+A step function takes ``(p, rng, particles, y, u, t, settings, moments)`` (the groups of
+:mod:`pfbench.backends.guided_work`; ``particles`` updated in place, ``moments`` filled) and returns
+``(loglik increment, N_eff, resampled, degenerate)``.
 """
 import numpy as _np
 
@@ -40,59 +34,36 @@ _SCHEME = _b.scheme
 _call6 = _caller(6)
 _call7 = _caller(7)
 #: a model's array of another size than in the check: refused (it would broadcast into the particles)
-_RESHAPED_PROPOSAL = "proposal" + _RESHAPED
-_RESHAPED_WEIGHT = "proposal_log_weight" + _RESHAPED
+_RESHAPED_PROPOSAL, _RESHAPED_WEIGHT = "proposal" + _RESHAPED, "proposal_log_weight" + _RESHAPED
 _RESHAPED_PREDICTIVE = "predictive_log_likelihood" + _RESHAPED
 
-
-@_njit(nogil=True, inline="always")
-def _proposed(x, y, u, t, noise, p):
-    """The model's ``proposal(x, y, u, t, noise, p)``, of the particles' size."""
-    xn = _proposal(x, y, u, t, noise, p)
-    if xn.shape[0] != x.shape[0] or xn.shape[1] != x.shape[1]:
-        raise ValueError(_RESHAPED_PROPOSAL)
-    return xn
-
-
-@_njit(nogil=True, inline="always")
-def _proposal_weights(xn, x, y, u, t, p):
-    """The model's ``proposal_log_weight(xn, x, y, u, t, p)``, one per particle."""
-    ll = _proposal_log_weight(xn, x, y, u, t, p)
-    if ll.shape[0] != x.shape[0]:
-        raise ValueError(_RESHAPED_WEIGHT)
-    return ll
-
-
-@_njit(nogil=True, inline="always")
-def _predictive_weights(y, x, u, t, p):
-    """The model's ``predictive_log_likelihood(y, x, u, t, p)``, one per particle."""
-    ll = _predictive_log_likelihood(y, x, u, t, p)
-    if ll.shape[0] != x.shape[0]:
-        raise ValueError(_RESHAPED_PREDICTIVE)
-    return ll
-
-
-# --------------------------------------------------------------------------- the model's calls
-# A whole run (in a scheme's module) calls the model through these, by address
-# (:mod:`pfbench.backends.native_call`; ``settings.propose``, ``settings.weight``): scheme-free
-# (:attr:`pfbench.backends.kernels.Family.shared`), so compiled once per model, on a cold cache in a
-# helper. The any-scheme module, for per-step callers, calls the model directly (``_SCHEME == -1``).
+# ---- the model's calls: a whole run calls them by address (``settings.propose``, ``settings.weight``;
+# scheme-free, :attr:`pfbench.backends.kernels.Family.shared`), per-step callers directly (``_SCHEME == -1``)
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _propose_into(x, y, u, t, noise, p, xn):
-    """xn = the model's ``proposal(x, y, u, t, noise, p)``."""
-    xn[:] = _proposed(x, y, u, t, noise, p)
+    """xn = the model's ``proposal(x, y, u, t, noise, p)``, of the particles' size."""
+    out = _proposal(x, y, u, t, noise, p)
+    if out.shape[0] != xn.shape[0] or out.shape[1] != xn.shape[1]:
+        raise ValueError(_RESHAPED_PROPOSAL)
+    xn[:] = out
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _weight_into(xn, x, y, u, t, p, ll):
-    """ll = the model's ``proposal_log_weight(xn, x, y, u, t, p)`` in float64."""
-    ll[:] = _proposal_weights(xn, x, y, u, t, p)
+    """ll = the model's ``proposal_log_weight(xn, x, y, u, t, p)`` in float64, one per particle."""
+    out = _proposal_log_weight(xn, x, y, u, t, p)
+    if out.shape[0] != ll.shape[0]:
+        raise ValueError(_RESHAPED_WEIGHT)
+    ll[:] = out
 
 
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _predictive_into(y, x, u, t, p, ll):
-    """ll = the model's ``predictive_log_likelihood(y, x, u, t, p)`` in float64."""
-    ll[:] = _predictive_weights(y, x, u, t, p)
+    """ll = the model's ``predictive_log_likelihood(y, x, u, t, p)`` in float64, one per particle."""
+    out = _predictive_log_likelihood(y, x, u, t, p)
+    if out.shape[0] != ll.shape[0]:
+        raise ValueError(_RESHAPED_PREDICTIVE)
+    ll[:] = out
 
 
 _propose_into = _b.shared("_propose_into", _propose_into)
@@ -104,7 +75,7 @@ _predictive_into = _b.shared("_predictive_into", _predictive_into)
 def _propose(x, y, u, t, noise, p, settings):
     xn = _np.empty_like(x)
     if _SCHEME == -1:  # compile-time constant
-        xn[:] = _proposed(x, y, u, t, noise, p)
+        _propose_into(x, y, u, t, noise, p, xn)
     else:
         _call7(_propose_into, settings.propose, x, y, u, t, noise, p, xn)
     return xn
@@ -112,19 +83,21 @@ def _propose(x, y, u, t, noise, p, settings):
 
 @_njit(nogil=True, inline="always")
 def _weight(xn, x, y, u, t, p, settings):
-    if _SCHEME == -1:
-        return _proposal_weights(xn, x, y, u, t, p).astype(_np.float64)
     ll = _np.empty(x.shape[0])
-    _call7(_weight_into, settings.weight, xn, x, y, u, t, p, ll)
+    if _SCHEME == -1:
+        _weight_into(xn, x, y, u, t, p, ll)
+    else:
+        _call7(_weight_into, settings.weight, xn, x, y, u, t, p, ll)
     return ll
 
 
 @_njit(nogil=True, inline="always")
 def _predictive(y, x, u, t, p, settings):
-    if _SCHEME == -1:
-        return _predictive_weights(y, x, u, t, p).astype(_np.float64)
     ll = _np.empty(x.shape[0])
-    _call6(_predictive_into, settings.weight, y, x, u, t, p, ll)
+    if _SCHEME == -1:
+        _predictive_into(y, x, u, t, p, ll)
+    else:
+        _call6(_predictive_into, settings.weight, y, x, u, t, p, ll)
     return ll
 
 

@@ -31,8 +31,7 @@ _call5 = _caller(5)
 _call7 = _caller(7)
 _call8 = _caller(8)
 
-#: what :func:`run` calls by address, in the order of its ``addresses`` (their types: ``_run_calls``
-#: and ``_step_calls`` of :mod:`pfbench.backends.numba_backend`)
+#: what :func:`run` calls by address, in its ``addresses``' order (types: numba_backend's ``_run_calls``, ``_step_calls``)
 RUN_CALLS = ("_cl_transition", "_cl_observation", "_cl_constrain", "_transition_into", "_observation_into",
              "_constrain_into", "_normals_into", "_sandwich", "_condition", "_time_update", "_kalman_update", "_weigh",
              "_moments", "_mixture_moments")
@@ -50,12 +49,9 @@ _cl_constrain = _b.model("cl_constrain")
 _resample = _b.resample
 
 
-# --------------------------------------------------------------------------- the model's calls
-# :func:`run` calls the model through these three, by address (:mod:`pfbench.backends.native_call`):
-# scheme-free (:attr:`pfbench.backends.kernels.Family.shared`), so compiled once per model, on a cold
-# cache in a helper. Each copies what the model returns into the kernel's float64 C arrays (a
-# ValueError for another shape), so the drivers and step math see one array type for every model,
-# and calls the model by address in turn, so the model is compiled once, in its own function.
+# ---- the model's calls: :func:`run` calls these three by address (scheme-free, compiled once per model);
+# each calls the model by address in turn and copies its result into the kernel's float64 C arrays (a
+# ValueError for another shape), so the drivers and step math see one array type for every model.
 @_njit(nogil=True, no_cpython_wrapper=True)
 def _transition_into(xn, u, t, p, tn, tl, model_address):
     """``cl_transition(xn, u, t, p)`` into f^n, A^n (``tn``) and f^l, A^l (``tl``,

@@ -65,8 +65,7 @@ _BOOTSTRAP = int(_Method.BOOTSTRAP)
 _SIR = int(_Method.SIR)
 _SYSTEMATIC = int(_Scheme.SYSTEMATIC)  # the schemes the merge serves (pfbench.resampling.MERGED),
 _STRATIFIED = int(_Scheme.STRATIFIED)  # compared one by one below, so a scheme's kernel drops the other branch
-#: particles per tile of the fused pass A: the tile's noise, new states and likelihoods stay in
-#: L1/L2, and the model's result arrays, allocated per tile, are a fixed cost per tile
+#: particles per tile of the fused pass A: its noise, states and likelihoods stay in L1/L2; the model's arrays cost once per tile
 _TILE = 1024
 #: a model's array of another shape than in the check: refused (rows are read/stored by index)
 _RESHAPED_TRANSITION = "transition" + _RESHAPED
