@@ -8,7 +8,8 @@ with code 2. Any other exception is a bug in pfbench: the CLI shows its tracebac
     PfbenchError
     ├── InputError (also a ValueError)   a bad argument, option, name or shape
     │   ├── DataError                    an unusable data file, log or store
-    │   └── ModelError                   a mistake in a model's code (its contract)
+    │   ├── ModelError                   a mistake in a model's code (its contract)
+    │   └── UnknownNameError             a model or task name that is not registered
     ├── UnsupportedError                 the model lacks what the method needs
     └── NumericalError                   numerical trouble that cannot be recovered from
 """
@@ -31,6 +32,11 @@ class ModelError(InputError):
     function that raises, returns the wrong shape or type, or that numba cannot compile."""
 
 
+class UnknownNameError(InputError):
+    """A model or task name that is not registered (in this process: a worker started afresh lacks
+    what its parent registered at run time)."""
+
+
 class UnsupportedError(PfbenchError):
     """The model does not declare what the method needs (e.g. no linear-Gaussian substructure)."""
 
@@ -40,4 +46,5 @@ class NumericalError(PfbenchError):
     stabilising solution)."""
 
 
-__all__ = ["PfbenchError", "InputError", "DataError", "ModelError", "UnsupportedError", "NumericalError"]
+__all__ = ["PfbenchError", "InputError", "DataError", "ModelError", "UnknownNameError", "UnsupportedError",
+           "NumericalError"]

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError, InputError
+from .errors import DataError, InputError, UnknownNameError
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 SIMULATED, REAL = "simulated", "real"
@@ -132,7 +132,7 @@ def get(name: str) -> Task:
     except KeyError:
         from .options import did_you_mean
 
-        raise InputError(f"unknown task {name!r}{did_you_mean(name, TASKS)}; `pfbench tasks` "
+        raise UnknownNameError(f"unknown task {name!r}{did_you_mean(name, TASKS)}; `pfbench tasks` "
                          "lists them") from None
 
 

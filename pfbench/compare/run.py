@@ -58,7 +58,7 @@ def make_spec(task_names, contender_texts, *, runs: int = 10, n_particles: int =
 
 
 def _whole(value, flag: str) -> int:
-    """``value`` as an integer >= 1 (2.5 was cut to 2, True taken as 1); an InputError otherwise."""
+    """``value`` as an integer >= 1, never rounded (2.5) nor a bool; an InputError otherwise."""
     import numbers
 
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:

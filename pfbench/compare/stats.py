@@ -39,8 +39,7 @@ def _mean(x):
 
 def _ci(x, nonnegative: bool = False):
     """The 95 % t-interval of the mean of ``x``; for a quantity that cannot be negative (an aRMSE, a
-    likelihood ratio) the lower end is held at 0: the interval [-13.4, 18.8] of L̂/L at R = 2 said
-    nothing a reader could use below zero."""
+    likelihood ratio) the lower end is held at 0, since no mean of it lies below."""
     ti = t_interval(x)
     if ti is None:
         return None

@@ -31,7 +31,7 @@ import pkgutil
 import sys
 from pathlib import Path
 
-from ..errors import InputError, ModelError, PfbenchError
+from ..errors import InputError, ModelError, PfbenchError, UnknownNameError
 from ..options import check_known, typed
 from .base import StateSpaceModel, Trajectory, gaussian_loglik_diag
 
@@ -168,7 +168,7 @@ def model_class(name: str) -> type[StateSpaceModel]:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise InputError(f"unknown model {name!r}; known models: {', '.join(names())}") from None
+        raise UnknownNameError(f"unknown model {name!r}; known models: {', '.join(names())}") from None
 
 
 _KINDS = {"float": float, "int": int, "bool": bool, "str": str}

@@ -52,7 +52,7 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import InputError, PfbenchError
+from ..errors import InputError, PfbenchError, UnknownNameError
 from ..procs import exclusive_lock, thread_env, usable_cores, worker_pool, worker_threads
 from ..resources import path_error
 from .core import n_tasks, run_chunk, task_key, warm_up
@@ -516,10 +516,8 @@ def _run_local(spec, planner, workers, done, max_units):
         except MemoryError:
             raise PfbenchError("a sweep worker ran out of memory; finished tasks are saved; use "
                                "fewer --workers or smaller --particles, then re-run to resume") from None
-        except InputError as exc:
-            if str(exc).startswith(("unknown task", "unknown model")):
-                raise InputError(f"{exc}{SPAWN_HINT}") from None
-            raise
+        except UnknownNameError as exc:
+            raise UnknownNameError(f"{exc}{SPAWN_HINT}") from None
 
     with worker_pool(workers, mp_context=mp.get_context("spawn"), initializer=_warm_quietly, initargs=(spec,),
                      threads=worker_threads(workers)) as pool:

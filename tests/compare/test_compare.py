@@ -424,10 +424,11 @@ def test_a_name_the_workers_cannot_find_is_said_so(tmp_path, monkeypatch):
     pool."""
     from pfbench import tasks
     from pfbench.compare.run import run_compare
+    from pfbench.errors import UnknownNameError
 
     monkeypatch.setitem(tasks.TASKS, "here-only", tasks.Task("here-only", "ob1", 5, datasets=2))
     spec = make_spec(["here-only"], ["pfbench:bootstrap:backend=numpy"], runs=2, n_particles=10)
-    with pytest.raises(InputError, match="unknown task 'here-only'.*start afresh.*define them in a module"):
+    with pytest.raises(UnknownNameError, match="unknown task .here-only..*start afresh.*define them in a module"):
         run_compare(spec, tmp_path / "j.jsonl", workers=2, progress=False)
 
 
