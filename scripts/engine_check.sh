@@ -1,73 +1,67 @@
 #!/usr/bin/env bash
-# The engine's speed figures on one quiet machine, in one call (about 7 minutes), from the
-# repository root:  OUT=/some/dir bash scripts/engine_check.sh
+# The engine's speed figures on one quiet multi-core machine, in one call (about 5 minutes), from
+# the repository root:  OUT=/some/dir bash scripts/engine_check.sh
 # "2 cores" sections run under `taskset -c 0,1`; the others use every core. JSON goes to $OUT
-# (e2e.json, busy.json, sweep.json, sweep16.json), the log to stdout. Every section is
-# time-boxed, and a failing one does not stop the next.
-#   1. cold first runs, 2 cores: the compile helper on / off, and a build without calls by address
-#      (the passes compiled into the driver, no helper), Ob1 bootstrap and Ob5 MPF
-#   2. end to end, 12 steps at N_p = 10^6, 1 vs 2 threads on 2 cores
-#   3. default threads vs 1 thread with 2 x (cores) busy processes, 2 cores
-#   4. a 45-second sweep on 1 and 2 workers (2 cores), then on 1, 2 and 16 workers
+# (end_to_end.json, busy.json, sweep.json: `pfbench bench --document` renders them), the log to
+# stdout. Every section is time-boxed, and a failing one does not stop the next. SECTIONS=13 runs sections 1 and 3 only (default: all).
+#   1. cold first runs, 2 cores, each on fresh caches: the compile helper on (the default) and off
+#      (PFBENCH_COMPILE_HELPER=0), alternating: Ob1 bootstrap, Ob5 MPF, and a new model (the
+#      README's, from a user's file)
+#   2. end to end, 12 steps at N_p = 10^6, 1 vs 2 threads on 2 cores (then 1 vs all on every core)
+#   3. default threads vs 1 thread with 2 x (cores) busy processes, every core
+#   4. a 40-second sweep on 1, 2 and all cores' workers
 set -u
 OUT=${OUT:-$PWD/engine-out}
 mkdir -p "$OUT"
 export PYTHONPATH=$PWD MPLBACKEND=Agg
 PY=${PYTHON:-python3}
 TWO="taskset -c 0,1"
+ALL=$(nproc)
+SECTIONS=${SECTIONS:-1234}
 t0=$(date +%s)
 log() { echo "== $* ($(( $(date +%s) - t0 )) s)"; }
 fresh() { export PFBENCH_CACHE_DIR=$(mktemp -d) NUMBA_CACHE_DIR=$(mktemp -d); }
 
 log machine
-nproc; $PY -c "import numba, numpy; print('numba', numba.__version__, 'numpy', numpy.__version__)"
-# a variant of the package beside the checkout: the passes compiled into the driver (no calls by
-# address, so no helper)
-variant() {
-  rm -rf "/tmp/$1"; mkdir -p "/tmp/$1"; cp -r pfbench "/tmp/$1/"; rm -f "/tmp/$1/pfbench/reproductions"
-}
-variant inline
-sed -i -e 's/_call_a(_pass_a, settings.pass_a, /_pass_a(/' -e 's/_call_b(_pass_b, settings.pass_b, /_pass_b(/' \
-  -e 's/_call_c(_merge_gather, settings.merge, /_merge_gather(/' /tmp/inline/pfbench/backends/numba_particle.py
-sed -i 's/^            found = native_addresses(model, "particle", .*$/            found = [0, 0, 0]/; /^                                     f_tiles=column_major_tiles(model))$/d' \
-  /tmp/inline/pfbench/backends/numba_backend.py
-grep -c "_pass_a(p, brngs" /tmp/inline/pfbench/backends/numba_particle.py
-grep -c "found = \[0, 0, 0\]" /tmp/inline/pfbench/backends/numba_backend.py
+echo "cores: $ALL"; lscpu 2>/dev/null | grep -E "^(Model name|Thread\(s\) per core|Core\(s\) per socket|Socket\(s\)|NUMA node\(s\))"
+$PY -c "import numba, numpy; print('numba', numba.__version__, 'numpy', numpy.__version__)"
 
-cold() {  # label PYTHONPATH helper(0/1) method model
+USER_MODEL=$(mktemp -d)/my_growth.py  # the README's "Your own model", as a user saves it
+$PY -c "
+import re, sys
+code = re.search(r'\`\`\`python\n(.*?)\`\`\`', open('README.md').read().split('## Your own model', 1)[1], re.S).group(1)
+open(sys.argv[1], 'w').write(code.split('\nm = ', 1)[0])" "$USER_MODEL"
+
+cold() {  # helper(0/1) method model
   fresh
-  local s e
+  local s e extra=()
+  [[ $3 == my_growth ]] && extra=(--models "$USER_MODEL")
   s=$(date +%s.%N)
-  PYTHONPATH=$2 PFBENCH_COMPILE_HELPER=$3 timeout 120 $TWO $PY -m pfbench run --model "$5" --method "$4" \
-    --steps 100 --particles 1000 --json > /dev/null 2> "$OUT/cold.err" || { echo "cold $1 failed"; tail -3 "$OUT/cold.err"; }
+  PFBENCH_COMPILE_HELPER=$1 timeout 120 $TWO $PY -m pfbench "${extra[@]}" run --model "$3" --method "$2" \
+    --steps 100 --particles 1000 --json > /dev/null 2> "$OUT/cold.err" || { echo "cold $* failed"; tail -3 "$OUT/cold.err"; }
   e=$(date +%s.%N)
-  $PY -c "print('cold', '$1', '$4', '$5', round($e - $s, 2), 's')"
+  $PY -c "print('cold', 'helper' if '$1' == '1' else 'one-process', '$2', '$3', round($e - $s, 2), 's')"
 }
-log "1. cold first runs, 2 cores (alternating)"
-for round in 1 2; do
-  cold helper "$PWD" 1 bootstrap ob1
-  cold one-process "$PWD" 0 bootstrap ob1
-  cold inline /tmp/inline 0 bootstrap ob1
-  cold helper "$PWD" 1 mpf ob5
-  cold one-process "$PWD" 0 mpf ob5
+[[ $SECTIONS == *1* ]] && log "1. cold first runs, 2 cores (alternating)" && for round in 1 2; do
+  cold 1 bootstrap ob1
+  cold 0 bootstrap ob1
+  cold 1 mpf ob5
+  cold 0 mpf ob5
+  cold 1 bootstrap my_growth
+  cold 0 bootstrap my_growth
 done
 
-fresh
-log "2. end to end, N_p = 10^6, 12 steps, 1 vs 2 threads, 2 cores"
-timeout 120 $TWO $PY -c "
-import json, sys
+fresh  # one cache for the rest: each section compiles what it runs once
+[[ $SECTIONS == *2* ]] && log "2. end to end, N_p = 10^6, 12 steps, 1 vs 2 threads, 2 cores" && \
+  timeout 120 $TWO $PY -m pfbench bench --end-to-end --out "$OUT/bench.json" | tail -5
+[[ $SECTIONS == *2* ]] && log "2b. end to end, N_p = 10^6, 12 steps, 1 vs $ALL threads, every core" && timeout 60 $PY -c "
+import sys
 from pfbench.bench import scaling
-r = scaling.end_to_end(rounds=11)
-print(scaling.end_to_end_text(r))
-json.dump(r, open(sys.argv[1], 'w'))" "$OUT/e2e.json"
+print(scaling.end_to_end_text(scaling.end_to_end(rounds=7, threads=int(sys.argv[1]))))" "$ALL"
 
-log "3. busy machine, 2 cores"
-timeout 150 $TWO $PY -m pfbench bench --busy --out "$OUT/bench.json" | tail -8
+[[ $SECTIONS == *3* ]] && log "3. busy machine, all $ALL cores" && timeout 150 $PY -m pfbench bench --busy --out "$OUT/bench.json" | tail -8
 
-log "4. sweep, 2 cores: 1 and 2 workers"
-timeout 200 $TWO $PY -m pfbench bench --sweep --sweep-workers 1,2 --sweep-seconds 45 --repeats 1 --out "$OUT/bench.json" | tail -8
-log "4. sweep, all cores: 1, 2 and 16 workers"
-mkdir -p "$OUT/all"
-timeout 150 $PY -m pfbench bench --sweep --sweep-workers 1,2,16 --sweep-seconds 45 --repeats 1 --out "$OUT/all/bench.json" | tail -8
-cp "$OUT/all/sweep.json" "$OUT/sweep16.json" 2>/dev/null
+[[ $SECTIONS == *4* ]] && log "4. sweep, all cores: 1, 2 and $ALL workers" && timeout 200 $PY -m pfbench bench --sweep --sweep-workers "1,2,$ALL" --sweep-seconds 40 --repeats 1 \
+  --out "$OUT/bench.json" | tail -8
+rm -f "$OUT/bench.json" "$OUT/cold.err"
 log "done"

@@ -2,28 +2,24 @@
 
 A filter kernel in no cache is two compiles that do not need each other: the functions that
 inline the model (the particle kernel's pass A; the MPF kernel's calls of the model's ``cl_*``
-functions) and the driver with the model-free passes. The driver calls the model's part through
-its native entry point (:mod:`pfbench.backends.native_call`), so compiling it needs that part's
-signature, not its code; and numba compiles one function at a time per process (one global
-compiler lock), so in one process the two would run one after the other.
+functions) and the driver with the model-free passes, which calls the model's part through its
+native entry point (:mod:`pfbench.backends.native_call`) and so needs its signature, not its code.
+numba compiles one function at a time per process (one global compiler lock).
 
 With two or more usable cores, when the driver and any of those functions are missing from the
 disk cache, :func:`pfbench.backends.numba_backend.native_addresses` calls :func:`start`: a new
-Python (``python -c`` with this process's import path, so it imports the same pfbench and model
-module) is handed the model class (by module and name), the kernel family, the tile layout and
-the functions' names and argument types, and compiles them into the same disk cache
+Python (``python -c`` with this process's import path; the model's module by name, or a user's
+model file by its path) is handed the model class, the kernel family, the tile layout and the
+functions' names and argument types, and compiles them into the same disk cache
 (:mod:`pfbench.backends.cache`) while this process compiles the driver, then waits for it and loads
-the functions from disk. What stays here is the caller's choice (``here`` of
-``native_addresses``): the particle kernel hands the helper pass A and the merge, the Kalman driver
-its step math, the MPF driver the model's functions and the wrappers that call them (keeping the
-model-free steps that balance the two cores), a guided run the wrappers of the model's proposal
-and weight.
+the functions from disk. The caller chooses what stays here (``here`` of ``native_addresses``),
+to balance the two cores.
 
-The helper only ever saves time. Whatever goes wrong there (the model's module cannot be imported
-in a new process, a compile error, a crash, a kill) leaves no cache entry, and this process
-compiles the functions itself, raising any error as it would without a helper. The helper dies
-with this process (:func:`pfbench.procs.die_with_parent`) and is killed if the driver's compile
-ends by an interrupt or an error.
+The helper only ever saves time. Whatever goes wrong there (an import error, a compile error, a
+crash, a kill) leaves no cache entry, and this process compiles the functions itself, raising any
+error as it would without a helper. The helper dies with this process
+(:func:`pfbench.procs.die_with_parent`) and is killed if the driver's compile ends by an interrupt
+or an error.
 
 Not used: with one usable core, in pfbench's pool workers (the pool already uses every core), for
 a model that numba cannot cache on disk or that lives in ``__main__``, and when
@@ -77,8 +73,8 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> subprocess.
     if not enabled() or model_cls.__module__ == "__main__":
         return None
     functions = [(name, tuple(argtypes)) for name, argtypes in functions]
-    spec = {"module": model_cls.__module__, "qualname": model_cls.__qualname__,
-            "family": family, "f_tiles": bool(f_tiles),
+    spec = {"module": model_cls.__module__, "qualname": model_cls.__qualname__, "family": family,
+            "file": getattr(sys.modules.get(model_cls.__module__), "__file__", None), "f_tiles": bool(f_tiles),
             "functions": functions, "parent": os.getpid()}
     try:
         proc = subprocess.Popen([sys.executable, "-c", _BOOT], stdin=subprocess.PIPE,
@@ -94,10 +90,9 @@ def start(model_cls: type, family: str, f_tiles: bool, functions) -> subprocess.
     return proc
 
 
-#: the helper's program: this process's import path, then :func:`_main` with the spec (which
-#: holds numba types: unpickled once the path is set). It ends with ``os._exit``: the cache files
-#: are written and closed by then, and the waiting process need not sit through the teardown of
-#: numba's and LLVM's objects
+#: the helper's program: this process's import path, then :func:`_main` with the spec (numba types,
+#: unpickled once the path is set); ``os._exit`` at the end: the cache files are closed by then, and
+#: the waiting process need not sit through the teardown of numba's and LLVM's objects
 _BOOT = ("import os, pickle, sys\n"
          "path, spec = pickle.loads(sys.stdin.buffer.read())\n"
          "sys.path[:] = path\n"
@@ -113,8 +108,13 @@ def _main(spec: dict) -> int:
     die_with_parent(spec["parent"])
     from pfbench.backends import native_call
     from pfbench.backends.kernels import build, model_class_by_name
+    from pfbench.models import import_path
 
-    model_cls = model_class_by_name(spec["module"], spec["qualname"])
+    try:
+        model_cls = model_class_by_name(spec["module"], spec["qualname"])
+    except ImportError:  # a user's model file (pfbench.models.load_files): imported under the same name
+        import_path(spec["module"], spec["file"])
+        model_cls = model_class_by_name(spec["module"], spec["qualname"])
     mod = build(spec["family"], model_cls, None, f_tiles=spec["f_tiles"])
     for name, argtypes in spec["functions"]:
         native_call.entry_address(getattr(mod, name), argtypes)

@@ -39,6 +39,7 @@ filter's own time ``own_s`` is the program's self-reported ``"elapsed_s"`` when 
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import json
@@ -47,6 +48,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -270,8 +272,6 @@ def _load_py(target: str, spec: str):
             except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's code (sys.exit too): one line
                 raise InputError(f"--contender {spec}: {target} failed to import: {exc_reason(exc)}") from None
         return _PY_MODULES[key]
-    import sys
-
     if os.getcwd() not in sys.path:  # a module of the current folder, as `python -m` finds it
         sys.path.append(os.getcwd())
     try:
@@ -308,7 +308,7 @@ class PyContender(Contender):
 
     def warm_up(self, task, model, traj):
         try:
-            with _prints_to_stderr():
+            with _user_code():
                 self.func(model, traj.y[:2], None if traj.u is None else traj.u[:2], n_particles=2, seed=0)
         except (Exception, SystemExit):  # noqa: BLE001 - the timed runs report it
             pass
@@ -316,7 +316,7 @@ class PyContender(Contender):
     def run(self, task, model, y, u, *, n_particles, seed, timeout):
         t0 = time.perf_counter()
         try:
-            with _prints_to_stderr():
+            with _user_code():
                 raw = self.func(model, y, u, n_particles=n_particles, seed=seed)
         except RunFailed:
             raise
@@ -326,13 +326,25 @@ class PyContender(Contender):
         return normalise(raw, y.shape[0], model.n_x, wall)
 
 
-def _prints_to_stderr():
-    """What a ``py:`` contender prints goes to standard error: standard output carries the
-    comparison's own output (``--json``)."""
-    import contextlib
-    import sys
+@contextlib.contextmanager
+def _user_code():
+    """Around a ``py:`` contender's call: what it prints goes to standard error (standard output
+    carries the comparison's own output, ``--json``), and ``os._exit`` in this process is a failed
+    run instead of the end of pfbench with that exit status and no output (a child it forks exits
+    as it asked)."""
+    real, pid = os._exit, os.getpid()
 
-    return contextlib.redirect_stdout(sys.stderr)
+    def refused(status=0):
+        if os.getpid() != pid:
+            real(status)
+        raise RunFailed(f"called os._exit({status}), which would end the comparison")
+
+    os._exit = refused
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        os._exit = real
 
 
 def request(task, model, y, u, n_particles: int, seed: int) -> dict:

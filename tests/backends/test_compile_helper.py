@@ -71,23 +71,31 @@ mod = build("guided", m, None)
 out["guided"] = {"model_calls": [[sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
                                  for f in (mod._propose_into, mod._predictive_into)],
                  "started": list(started), "est": r.estimates.tolist()}
+from pfbench.models import load_files
+(user,) = load_files([sys.argv[1]])  # a user's model file: its module cannot be imported by name
+m = get(user)
+r = run_filter(m, m.simulate(15, seed=1).y, n_particles=64, seed=3, n_threads=1)
+a = build("particle", m, "systematic")._pass_a.stats
+out["user"] = {"pass_a": [sum(a.cache_hits.values()), sum(a.cache_misses.values())],
+               "started": list(started), "est": r.estimates.tolist()}
 out["kinds"] = kinds
 print(json.dumps(out))
 """
 
 
-def _run_cold(script: str, tmp_path) -> dict:
-    """Run ``script`` in a fresh process on empty caches (helpers allowed); its last output line."""
+def _run_cold(script: str, tmp_path, *args) -> dict:
+    """Run ``script`` with ``args`` in a fresh process on empty caches (helpers allowed); its last
+    output line."""
     env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "pf"), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
     env.pop(compile_helper.ENV, None)
-    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
+    r = subprocess.run([sys.executable, "-c", script, *map(str, args)], capture_output=True, text=True, env=env,
                        timeout=900, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
 @pytest.mark.skipif(compile_helper.usable_cores() < 2, reason="a compile helper needs a second core")
-def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(tmp_path):
+def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(tmp_path, readme_model_file):
     """In one fresh process with an empty cache:
 
     * Ob1, whose helper fails (it cannot import the model): this process compiles pass A itself (a
@@ -106,13 +114,17 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     * The guided filter on the reduced PMSM model (the optimal proposal): the helper compiles the
       wrappers of its proposal and predictive likelihood, this process loads them (hits, no
       miss). Catches: a guided run that compiles the model itself.
+    * A model from a user's file (the README's, loaded as ``--models`` loads it): the helper
+      imports the file by its path and compiles pass A, this process loads it (a hit). Catches: a
+      helper that imports the model's module by name only, which a user's file has not.
 
     Every run gives the estimates of the same run in this (test) process, bit for bit."""
     from pfbench.filters.run import run_filter
     from pfbench.models import get
 
-    got = _run_cold(SCRIPT, tmp_path)
-    assert got.pop("kinds") == ["Popen"] * 5
+    path = readme_model_file("helper_growth")
+    got = _run_cold(SCRIPT, tmp_path, path)
+    assert got.pop("kinds") == ["Popen"] * 6
     ob1, ob2, ob2s = got["ob1/systematic"], got["ob2/systematic"], got["ob2/stratified"]
     assert ob1["pass_a"] == [0, 1] and ob1["driver_misses"] == 1
     assert ob2["pass_a"] == [1, 0] and ob2["driver_misses"] == 1
@@ -143,6 +155,14 @@ def test_a_cold_kernel_compiles_pass_a_in_a_helper_and_falls_back_when_it_fails(
     tr = m.simulate(15, seed=1)
     want = run_filter(m, tr.y, tr.u, method="guided", n_particles=64, seed=3).estimates
     np.testing.assert_array_equal(np.asarray(guided["est"]), want)
+    user = got.pop("user")
+    assert user["pass_a"] == [1, 0] and user["started"][-1] == "MyGrowth"
+    from pfbench.models import load_files
+
+    (name,) = load_files([path])
+    m = get(name)
+    want = run_filter(m, m.simulate(15, seed=1).y, n_particles=64, seed=3, n_threads=1).estimates
+    np.testing.assert_array_equal(np.asarray(user["est"]), want)
     for key, res in got.items():
         name, scheme = key.split("/")
         m = get(name)

@@ -5,6 +5,7 @@ to compile), small N_p and few runs, so the file takes seconds."""
 import json
 import math
 import re
+import subprocess
 import sys
 import textwrap
 from pathlib import Path
@@ -43,6 +44,9 @@ def files(tmp_path_factory):
         def exits(model, y, u, *, n_particles, seed):
             import sys
             sys.exit(3)
+        def hard_exits(model, y, u, *, n_particles, seed):
+            import os
+            os._exit(0)
     '''))
     (d / "garbage.py").write_text("import sys; sys.stdin.read(); print('not json')\n")
     (d / "vandal.py").write_text(textwrap.dedent('''
@@ -73,6 +77,23 @@ def test_a_contender_that_calls_sys_exit_is_a_failed_run(files, tmp_path):
     assert res.exit_code == 0, res.output
     cs = json.loads((out / "compare.json").read_text())["tasks"]["ob1"]["contenders"]
     assert cs["quits"]["failed"] == 2 and list(cs["quits"]["failures"]) == ["SystemExit: 3"]
+    assert cs["bootstrap-numpy"]["complete"]
+
+
+def test_a_contender_that_calls_os_exit_is_a_failed_run(files, tmp_path):
+    """os._exit(0) in a py: contender ended pfbench with status 0 and no output, as if it had
+    finished. Catches the call not intercepted around the contender (in a process of its own, since
+    without the fix the call would end this one)."""
+    out = tmp_path / "cmp"
+    res = subprocess.run([sys.executable, "-m", "pfbench", "compare", "--task", "ob1", "--runs", "2",
+                          "--particles", "50", "--quiet", "--out", str(out),
+                          "--contender", "pfbench:bootstrap:backend=numpy",
+                          "--contender", f"quits=py:{files / 'broken.py'}:hard_exits"],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    cs = json.loads((out / "compare.json").read_text())["tasks"]["ob1"]["contenders"]
+    assert cs["quits"]["failed"] == 2
+    assert any("os._exit(0)" in reason for reason in cs["quits"]["failures"])
     assert cs["bootstrap-numpy"]["complete"]
 
 
