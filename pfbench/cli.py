@@ -38,6 +38,7 @@ from .clitypes import (OUT_DIR, OUT_FILE, ChoiceList, NonEmptyPath, complete_mod
 from .errors import InputError, PfbenchError
 from .methods import BACKENDS, DTYPES, ESTIMATES, METHODS
 from .options import parse_key_values
+from .progress import compile_notice
 from .resampling import SCHEMES
 
 DEBUG_ENV = "PFBENCH_DEBUG"
@@ -299,9 +300,10 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
             traj = _first_rows(traj, steps, data)
     else:
         traj = model.simulate(steps, seed=truth_stream(seed) if truth_seed is None else truth_seed)
-    res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
-                     resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
-                     seed=seed, n_threads=threads, estimate=estimate)
+    with compile_notice():
+        res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
+                         resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
+                         seed=seed, n_threads=threads, estimate=estimate)
     if threads is not None and threads > numba_threads():
         click.echo(f"note: --threads {threads}: numba has {numba_threads()} threads here (NUMBA_NUM_THREADS, "
                    "the cores), so the run used at most that many", err=True)
@@ -584,8 +586,9 @@ def reproduce(recipe_ids, run_all, paper, full, backend, seed, out_root, data, o
             continue
         say(f"== {step}{rec.id}: {rec.title} ({'full' if full else 'quick'}, {backend})")
         try:
-            ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root,
-                              data=rec_data, quiet=quiet, options=per_recipe[rec.id])
+            with compile_notice(show=not quiet):
+                ctx = recipes.run(rec, full=full, backend=backend, seed=seed, out_root=out_root,
+                                  data=rec_data, quiet=quiet, options=per_recipe[rec.id])
         except PfbenchError as exc:
             if not run_all:
                 raise
