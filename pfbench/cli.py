@@ -304,6 +304,8 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         res = run_filter(model, traj.y, traj.u, method=method, n_particles=particles, n_filters=filters,
                          resampling=resampling, ess_threshold=ess_threshold, backend=backend, dtype=dtype,
                          seed=seed, n_threads=threads, estimate=estimate)
+    from .procs import numba_threads
+
     if threads is not None and threads > numba_threads():
         click.echo(f"note: --threads {threads}: numba has {numba_threads()} threads here (NUMBA_NUM_THREADS, "
                    "the cores), so the run used at most that many", err=True)
@@ -321,6 +323,8 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         "elapsed_s": res.elapsed_s,
         "ns_per_particle_step": res.ns_per_particle_step,
     }
+    if "threads" in res.info:
+        out["threads"] = res.info["threads"]
     if method == "kalman":  # no particles: what is printed for a particle filter would be noise here
         for key in ("n_particles", "resampling", "estimate", "n_resampled", "n_degenerate_steps"):
             del out[key]
@@ -395,13 +399,6 @@ def _first_rows(traj, steps: int, data):
         raise click.BadParameter(f"{steps} steps, but {data} has {traj.n_steps} rows", param_hint="'--steps'")
     return dataclasses.replace(traj, x=traj.x[:steps], y=traj.y[:steps],
                                u=None if traj.u is None else traj.u[:steps])
-
-
-def numba_threads() -> int:
-    """The threads numba may start in this process (``NUMBA_NUM_THREADS``, by default the cores)."""
-    import numba
-
-    return int(numba.config.NUMBA_NUM_THREADS)
 
 
 # --------------------------------------------------------------------------- compile

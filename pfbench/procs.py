@@ -162,6 +162,13 @@ def _environ(env: dict) -> Iterator[None]:
                 os.environ[k] = v
 
 
+def numba_threads() -> int:
+    """The threads numba may start in this process (``NUMBA_NUM_THREADS``, by default the cores)."""
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
 def free_cores() -> int:
     """How many cores a parallel region of this process can have to itself now: :func:`usable_cores`
     less the threads of other processes that are runnable, at least 1, and at most this process's

@@ -42,7 +42,7 @@ from .. import backends
 from ..backends.numpy_backend import BLOCK, block_streams
 from ..backends.particle_work import outputs
 from ..errors import InputError
-from ..procs import free_cores
+from ..procs import free_cores, numba_threads
 from ..resampling import Scheme
 from ..methods import ARRAY_BACKENDS, Estimate, Method, check_backend, check_dtype
 from .inputs import ess_count, seed_sequence
@@ -105,7 +105,8 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     mean, variance = total_variance(est, var)
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
             "resampling": scheme.label, "estimate": estimate,
-            "common_random_numbers": bool(common_random_numbers), "n_streams": n_streams, **extra}
+            "common_random_numbers": bool(common_random_numbers), "n_streams": n_streams,
+            "threads": out.get("threads", 1), **extra}
     if n_per * n_filters != n_particles:
         info["n_particles_requested"] = n_particles
         info["note"] = (f"N_p = {n_particles} does not split evenly into {n_filters} sub-filters: "
@@ -126,9 +127,10 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     """Run ``n_filters`` filters of ``n_per`` particles on validated, contiguous ``y``/``u``.
 
     The filters are split evenly over the random streams ``rngs`` (one group per stream, see
-    :func:`streams`); on numba, groups run in parallel threads (``n_threads``; default all cores,
-    1 to stay sequential). Returns ``(arrays, elapsed_s)`` with per-filter arrays ``est``/``var``
-    (N_f, M, n_x), ``ess``/``inc``/``resampled``/``degen`` (N_f, M). ``method`` is a particle-family
+    :func:`streams`); on numba, groups run in parallel threads (``n_threads``; default the free
+    cores, :func:`pfbench.procs.free_cores`; 1 to stay sequential). Returns ``(arrays, elapsed_s)``
+    with per-filter arrays ``est``/``var`` (N_f, M, n_x), ``ess``/``inc``/``resampled``/``degen``
+    (N_f, M), and ``threads``, the threads the run used. ``method`` is a particle-family
     :class:`Method` (MultiPDF sub-filters run as bootstrap), ``resampling`` a :class:`Scheme` and
     ``ess_threshold`` a particle count. ``store_particles`` adds ``particles`` (N_f, M, n, n_x) and
     ``weights`` (N_f, M, n), the normalised weighted particles of every step before resampling.
@@ -156,12 +158,15 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
     scheme = int(Scheme.parse(resampling))
     block = int(block or BLOCK)
     at = {"estimate": "post"} if Estimate.parse(estimate) == Estimate.POST else {}
-    # free_cores reads /proc: only where there are groups to spread over threads
-    workers = min(n_groups, n_threads or free_cores()) if n_groups > 1 else 1
-    pooled = n_groups > 1 and backend == "numba" and workers > 1
-    # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
-    inner = 1 if (pooled or n_groups > 1) else n_threads
     brngs = [block_streams(r, r.bit_generator.seed_seq, n_per, block) for r in rngs]
+    # the threads it may use, where there are groups or stream blocks to spread over them on numba:
+    # those asked for, else the free cores (free_cores reads /proc), at most numba's
+    spread = backend == "numba" and (n_groups > 1 or len(brngs[0]) > 1)
+    threads = min(n_threads or free_cores(), numba_threads()) if spread else 1
+    workers = min(n_groups, threads)
+    pooled = n_groups > 1 and workers > 1
+    # one filter at a time may use every core; pooled sub-filters run serial kernels (no oversubscription)
+    inner = 1 if n_groups > 1 else threads
     if backend == "numba":  # compile (or load from cache) outside the timed region
         be.warm_up(model, p, y, u, ptype, scheme, parallel=len(brngs[0]) > 1 and inner != 1)
 
@@ -179,6 +184,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
             job(gi)
     elapsed = time.perf_counter() - t0
     return {"est": out.est, "var": out.var, "ess": out.ess, "inc": out.inc, "resampled": out.resampled,
-            "degen": out.degen, "particles": out.hist_x, "weights": out.hist_w}, elapsed
+            "degen": out.degen, "particles": out.hist_x, "weights": out.hist_w,
+            "threads": workers if pooled else inner}, elapsed
 
 

@@ -43,7 +43,8 @@ class FilterResult:
         marginalized PF), else None.
     extras : family-specific arrays (Kalman: ``pred_means``, ``pred_covs``, ``innovations``,
         ``innovation_covs``, ``gains``; guided: ``resampled``; ...).
-    info : settings and bookkeeping (resampling scheme, thresholds, streams, notes).
+    info : settings and bookkeeping (resampling scheme, thresholds, streams, notes; a particle
+        filter's ``threads``: the threads it ran on, the free cores by default).
     """
 
     estimates: np.ndarray

@@ -232,3 +232,25 @@ def test_random_initial_draw_multi_block_threads_and_backends_agree(sv):
         for name in ("estimates", "variances", "ess", "loglik_increments"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
             np.testing.assert_allclose(getattr(c, name), getattr(a, name), rtol=1e-9, atol=1e-9, err_msg=name)
+
+
+def test_the_result_says_how_many_threads_the_run_used(ob1, monkeypatch):
+    """``info["threads"]``: the threads asked for (at most numba's), the free cores by default, 1 for
+    one stream block or on NumPy, the pool's workers for MultiPDF's groups. Catches a result that
+    reports the request instead of what ran, or no count at all (a slow run on a busy machine then
+    looks like pfbench's fault)."""
+    from pfbench.filters import particle
+    from pfbench.procs import numba_threads
+
+    model, traj = ob1
+    top = numba_threads()
+    assert _run(model, traj, n_threads=1).info["threads"] == 1
+    assert _run(model, traj, n_threads=2).info["threads"] == min(2, top)
+    monkeypatch.setattr(particle, "free_cores", lambda: 1)  # a busy machine: one free core
+    assert _run(model, traj).info["threads"] == 1
+    monkeypatch.setattr(particle, "free_cores", lambda: 64)
+    assert _run(model, traj).info["threads"] == top
+    assert _run(model, traj, n_threads=2, _block=None).info["threads"] == 1  # 600 particles: one block
+    assert _run(model, traj, n_threads=2, backend="numpy").info["threads"] == 1
+    mpdf = _run(model, traj, method="multipdf", n_filters=4, n_threads=3, _block=None)
+    assert mpdf.info["threads"] == min(3, top)

@@ -113,9 +113,9 @@ def test_one_method_table():
 
 
 def test_one_group_does_not_ask_how_many_cores_are_free(ob4, monkeypatch):
-    """One filter has no groups to spread over threads, so it does not read /proc for the free cores
-    (about 0.1 ms a call, more than the filter itself at small N_p); catches the count taken for
-    every run."""
+    """One filter of one stream block, or any filter on NumPy, has nothing to spread over threads,
+    so it does not read /proc for the free cores (about 0.1 ms a call, more than the filter itself
+    at small N_p); catches the count taken for every run."""
     import pfbench.filters.particle as particle
 
     def refuse():
@@ -125,6 +125,8 @@ def test_one_group_does_not_ask_how_many_cores_are_free(ob4, monkeypatch):
     model, traj = ob4
     res = pfbench.run_filter(model, traj.y, traj.u, method="bootstrap", n_particles=50, backend="numpy")
     assert res.n_particles == 50
-    with pytest.raises(AssertionError, match="single group"):  # several sub-filters do need it
+    res = pfbench.run_filter(model, traj.y, traj.u, method="multipdf", n_particles=50, n_filters=2, backend="numpy")
+    assert res.info["threads"] == 1
+    with pytest.raises(AssertionError, match="single group"):  # several sub-filters on numba do need it
         pfbench.run_filter(model, traj.y, traj.u, method="multipdf", n_particles=50, n_filters=2,
-                           backend="numpy")
+                           backend="numba")
