@@ -42,14 +42,18 @@ def _section(page, title):
     return body.split("\n### ", 1)[0].split("\n## ", 1)[0]
 
 
-def _scripted(monkeypatch, script):
-    """Replace :func:`pfbench.bench.timing.filter_ns` by one returning ``script[n_threads]`` in turn."""
+def _scripted(monkeypatch, script, used=None):
+    """Replace :func:`pfbench.bench.timing.filter_ns` by one returning ``script[n_threads]`` in turn
+    (and, asked for the threads it ran on, reporting ``used[n_threads]`` in turn)."""
     from pfbench.bench import timing
 
     calls = {}
 
-    def fake(model, traj, n, backend, dtype, repeats, method="bootstrap", n_filters=1, n_threads=None):
+    def fake(model, traj, n, backend, dtype, repeats, method="bootstrap", n_filters=1, n_threads=None,
+             threads=None):
         i = calls[n_threads] = calls.get(n_threads, -1) + 1
+        if threads is not None:
+            threads.append(used[n_threads][i % len(used[n_threads])])
         seq = script[n_threads]
         return seq[i % len(seq)]
 
@@ -59,10 +63,10 @@ def _scripted(monkeypatch, script):
 # --------------------------------------------------------------------------- synthetic result files
 def busy_json(monkeypatch):
     """:func:`pfbench.bench.busy.run_busy`, no processes spun, default / 1 thread = 1, 2, 9 per round
-    (median 2, mean 4)."""
+    (median 2, mean 4); the default ran on 4, 4, 3 threads in the quiet rounds and on 1 in the busy ones."""
     from pfbench.bench import busy
 
-    _scripted(monkeypatch, {None: [10.0, 20.0, 90.0], 1: [10.0]})
+    _scripted(monkeypatch, {None: [10.0, 20.0, 90.0], 1: [10.0]}, used={None: [4, 4, 3, 1, 1, 1]})
     monkeypatch.setattr(busy, "_spinners", lambda count: [])
     monkeypatch.setattr(busy.time, "sleep", lambda s: None)
     return busy.run_busy(rounds=3, steps=5, sizes=(1000,))
@@ -203,7 +207,11 @@ def test_busy_table_shows_the_medians_of_the_rounds(monkeypatch, tmp_path):
     assert data["sizes"]["1000"]["busy"] == pytest.approx([1.0, 2.0, 9.0])
     _write(res, "busy.json", data)
     sec = _section(document.render(res, _notes(tmp_path)), "Default thread count")
-    assert "| 10^3 | 2.00x | 1.00-9.00x | 2.00x | 1.00-9.00x | misses |" in sec
+    assert "| 10^3 | 2.00x | 1.00-9.00x | 2.00x | 1.00-9.00x | 3-4 | 1 | misses |" in sec
+    del data["sizes"]["1000"]["default_threads"]  # a file from before the threads were kept
+    _write(res, "busy.json", data)
+    sec = _section(document.render(res, _notes(tmp_path)), "Default thread count")
+    assert "| 10^3 | 2.00x | 1.00-9.00x | 2.00x | 1.00-9.00x | - | - | misses |" in sec
 
 
 def test_scaling_table_shows_medians_and_paired_speedup(monkeypatch, tmp_path):

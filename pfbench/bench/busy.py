@@ -34,13 +34,16 @@ def run_busy(rounds: int = 5, steps: int = 200, sizes=SIZES) -> dict:
     traj = model.simulate(steps, seed=1)
     out = {}
     for n in sizes:
-        timers = {"default": lambda n=n: filter_ns(model, traj, n, "numba", "float64", 3),
-                  "one": lambda n=n: filter_ns(model, traj, n, "numba", "float64", 3, n_threads=1)}
-        quiet = interleaved(timers, rounds)
+        def timers(used: list, n=n) -> dict:  # used: the threads of every timed default run
+            return {"default": lambda: filter_ns(model, traj, n, "numba", "float64", 3, threads=used),
+                    "one": lambda: filter_ns(model, traj, n, "numba", "float64", 3, n_threads=1)}
+
+        used = {"quiet": [], "busy": []}
+        quiet = interleaved(timers(used["quiet"]), rounds)
         procs = _spinners(2 * usable_cores())
         try:
             time.sleep(0.3)
-            busy = interleaved(timers, rounds)
+            busy = interleaved(timers(used["busy"]), rounds)
         finally:
             for p in procs:
                 p.kill()
@@ -48,7 +51,8 @@ def run_busy(rounds: int = 5, steps: int = 200, sizes=SIZES) -> dict:
                 p.wait()
         out[str(n)] = {"quiet": round_ratios(quiet["default"], quiet["one"]),
                        "busy": round_ratios(busy["default"], busy["one"]),
-                       "busy_ns": busy, "quiet_ns": quiet}
+                       "busy_ns": busy, "quiet_ns": quiet,
+                       "default_threads": used}
     return provenance(kind="bench_busy", section="busy", busy_processes=2 * usable_cores(), steps=steps, target=TARGET,
                       sizes=out)
 

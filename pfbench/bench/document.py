@@ -329,9 +329,19 @@ def render_busy(d: dict) -> list[str]:
         busy = [float(x) for x in r["busy"] if x is not None and math.isfinite(float(x))]
         worst = max(busy) if busy else None
         rows.append([_pow10(n), ratio(median(r["quiet"])), span(r["quiet"]), ratio(median(busy)), span(busy),
+                     _threads(r, "quiet"), _threads(r, "busy"),
                      "not measured" if worst is None else ("meets" if worst <= target else "misses")])
-    out += table(["N_p", "quiet, median", "quiet, rounds", "busy, median", "busy, rounds", "verdict"], rows)
+    out += table(["N_p", "quiet, median", "quiet, rounds", "busy, median", "busy, rounds", "default's threads, quiet",
+                  "default's threads, busy", "verdict"], rows)
     return out
+
+
+def _threads(r: dict, phase: str) -> str:
+    """The range of threads the default runs of ``phase`` ran on (files before it was kept: "-")."""
+    used = [int(v) for v in r.get("default_threads", {}).get(phase, []) if v is not None]
+    if not used:
+        return "-"
+    return str(min(used)) if min(used) == max(used) else f"{min(used)}-{max(used)}"
 
 
 def render_sweep(d: dict) -> list[str]:

@@ -9,16 +9,19 @@ from pathlib import Path
 
 
 def filter_ns(model, traj, n: int, backend: str, dtype: str, repeats: int, method: str = "bootstrap",
-              n_filters: int = 1, n_threads: int | None = None) -> float:
+              n_filters: int = 1, n_threads: int | None = None, threads: list | None = None) -> float:
     """Median ``FilterResult.elapsed_s`` of ``repeats`` runs of :func:`pfbench.run_filter` on
-    ``traj.y`` as ns per particle-step, after one untimed run on 3 steps (compilation)."""
+    ``traj.y`` as ns per particle-step, after one untimed run on 3 steps (compilation). ``threads``:
+    a list that gets each timed run's ``info["threads"]`` (how many it ran on)."""
     from ..filters import run_filter
 
     kw = dict(method=method, n_particles=n, n_filters=n_filters, backend=backend, dtype=dtype,
               n_threads=n_threads)
     run_filter(model, traj.y[:3], None, seed=0, **kw)  # compile / warm up
-    times = [run_filter(model, traj.y, None, seed=r, **kw).elapsed_s for r in range(max(int(repeats), 1))]
-    return statistics.median(times) * 1e9 / (n * traj.n_steps)
+    runs = [run_filter(model, traj.y, None, seed=r, **kw) for r in range(max(int(repeats), 1))]
+    if threads is not None:
+        threads.extend(r.info.get("threads") for r in runs)
+    return statistics.median(r.elapsed_s for r in runs) * 1e9 / (n * traj.n_steps)
 
 
 def particles_ns(m: int, n: int, repeats: int) -> dict | None:
