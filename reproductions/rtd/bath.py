@@ -257,10 +257,22 @@ def _claims_fig7(ctx, r):
         sweep = [Reading(f"bath noise variance {R:g} degC^2 (predictors calibrated at it)", "fraction of the upward "
                          "transient inside the layer", up(runs, ENVELOPE, why))
                  for R, runs in r["levels"].items() if R != r["R0"]]
-        out, others = swept(up(runs0, ENVELOPE, why), sweep, "bath's noise level")
-        if others:
-            others.append(Reading(why_loose, "fraction of the upward transient inside the layer",
-                                  up(runs0, ENVELOPE_LOOSE, why_loose)))
+        sweep.append(Reading(why_loose, "fraction of the upward transient inside the layer",
+                             up(runs0, ENVELOPE_LOOSE, why_loose)))
+        # the calibration picks the Q/R pair that maximises the fraction inside (both transients): when
+        # even its best is below the looser reading, the simulated plant, not the filters, decides
+        if r["cal"].fraction < ENVELOPE_LOOSE:
+            mean = float(np.mean(_per_run(runs0, "frac_up")))
+            out = not_reproducible(
+                f"whether the layer envelopes the response is a property of the chapter's real bath: on our simulated "
+                f"eq. 52 sensor the Q/R pair that maximises the fraction inside holds only {r['cal'].fraction:.0%} "
+                f"of the calibration run's transients, below both readings ({ENVELOPE_LOOSE:.0%}, {ENVELOPE:.0%}), "
+                f"so the plant that stands in for the bath decides (ours {mean:.2f} of the upward transient); as "
+                "for the downward sentence, the chapter's log (--data) is what can decide it")
+            others = sweep
+        else:
+            out, others = swept(up(runs0, ENVELOPE, why), sweep[:-1], "bath's noise level")
+            others = others + sweep[-1:] if others else others
         ctx.claim(up_s, where, "fraction of the upward transient inside the calibrated layer, per run", out,
                   paper=f"inside (read as >= {ENVELOPE:.0%})",
                   reading=(f"{why}, at the default noise variance {r['R0']:g} degC^2 on the paper's eq. 52 sensor; "

@@ -121,14 +121,19 @@ def test_bands_come_from_the_papers_precision():
 
 def test_fig4_6_primary_reading_is_the_thesis_prior_spread(tmp_path):
     """The U(-pi, pi) spread pi/sqrt(3) is primary; sd = 1 rad (built to fail for the SMC at offset pi)
-    is only a sensitivity row. Catches the built-to-fail reading scored, or either sentence twice."""
+    is a sensitivity row of the EKF sentence and a comparison row beside the SMC one. Catches the
+    built-to-fail reading scored, a reading that cannot agree marking the SMC sentence as depending
+    on the reading, or either sentence twice."""
     ctx = run(resolve("thesis:fig4.6"), out_root=tmp_path, quiet=True, options={"runs": "2", "points": "2"})
     findings = [c for c in ctx.claims if c["kind"] == FINDING]
     assert len(findings) == 2
+    smc, ekf = findings
     for c in findings:
         assert "prior sd 1.81" in c["quantity"] and "primary" in c["reading"]
-        assert [o["quantity"].endswith("prior sd 1") for o in c["sensitivity"]] == [True]
-        assert "built to fail" in c["sensitivity"][0]["reading"]
+    assert smc["sensitivity"] == [] and not smc["depends_on_reading"]
+    assert any(q.startswith("SMC failure") and "prior sd 1 (built to fail" in q
+               for q in (c.quantity for c in ctx.comparisons))
+    assert [o["quantity"].endswith("prior sd 1") for o in ekf["sensitivity"]] == [True]
 
 
 def test_fig4_7_scores_the_contrast_and_not_the_lost_exponents(tmp_path):
@@ -166,7 +171,14 @@ def test_the_start_up_sentences_are_decided_on_many_realisations(tmp_path):
     ctx = run(resolve("thesis:fig4.2"), out_root=tmp_path, quiet=True, options={"runs": "4"})
     assert len(ctx.claims) == 2
     for c in ctx.claims:
-        assert c["n"] == 4 and c["band"] == [0.5, 1.0] and "Wilson" in c["rule"] and c["kind"] == FINDING
+        assert c["band"] == [0.5, 1.0] and "Wilson" in c["rule"] and c["kind"] == FINDING
+    converges, reason = ctx.claims
+    assert converges["n"] == 4
+    # the caption's reason of the EKF's failure is scored among the failures (catches the share of all
+    # realisations, where the EKF that does not fail counts against the reason)
+    ledger = {c.quantity: c for c in ctx.comparisons}
+    fails = int(ledger["EKF fails (pfbench.plants.pmsm_control.loss), realisations"].ours.split()[0])
+    assert reason["n"] == fails and "among the realisations in which the EKF fails" in reason["rule"]
     ctx = run(resolve("thesis:fig2.3"), out_root=tmp_path, quiet=True, options={"steps": "10", "runs": "3"})
     assert ctx.claims[0]["quantity"].startswith("aRMSE, SIS minus SIR")
 
