@@ -25,6 +25,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..sources import digest, file_hash
+
 PACKAGE_DIR = Path(__file__).resolve().parent.parent
 _TRACKED: set[str] = set()
 
@@ -79,17 +81,6 @@ def track_file(path) -> None:
     _TRACKED.add(os.path.realpath(str(path)))
 
 
-def _file_hash(path: str) -> str:
-    st = os.stat(path)
-    return _hash_cached(path, st.st_mtime_ns, st.st_size)
-
-
-@functools.cache
-def _hash_cached(path: str, mtime_ns: int, size: int) -> str:
-    with open(path, "rb") as fh:
-        return hashlib.sha256(fh.read()).hexdigest()
-
-
 def _covered(py_file: str) -> bool:
     real = os.path.realpath(py_file)
     return real in _TRACKED or Path(real).is_relative_to(os.path.realpath(PACKAGE_DIR))
@@ -102,7 +93,7 @@ def _locator_class():
         """numba cache locator whose freshness stamp covers the whole pfbench package."""
 
         def __init__(self, py_func, py_file):
-            self._py_file = py_file
+            self._py_file, self._py_func = py_file, py_func
             self._lineno = py_func.__code__.co_firstlineno
             # one directory per module: a kernel template runs as one module per model
             # (:func:`pfbench.backends.kernels.build`), whose functions share file and line
@@ -112,8 +103,9 @@ def _locator_class():
         def get_cache_path(self):
             return self._cache_path
 
-        def get_source_stamp(self):
-            return (package_fingerprint(), _file_hash(self._py_file))
+        def get_source_stamp(self):  # a model's file: also the user's code its function reaches
+            user = os.path.realpath(self._py_file) in _TRACKED
+            return (package_fingerprint(), file_hash(self._py_file), digest([self._py_func]) if user else "")
 
         def get_disambiguator(self):
             return str(self._lineno)

@@ -27,6 +27,7 @@ import threading
 import types
 from dataclasses import dataclass
 
+from ..sources import model_digest
 from . import cache
 
 
@@ -183,7 +184,8 @@ def disk_cacheable(cls: type) -> bool:
 
 
 def _source_fingerprint(cls: type, fam: Family) -> bytes:
-    parts = [cache.package_fingerprint().encode(), fam.template.encode(), str(disk_cacheable(cls)).encode()]
+    parts = [cache.package_fingerprint().encode(), fam.template.encode(), str(disk_cacheable(cls)).encode(),
+             model_digest(cls).encode()]  # with the user's code and constants the model's functions reach
     try:
         parts.append(inspect.getsource(sys.modules.get(cls.__module__)).encode())
     except (OSError, TypeError):

@@ -54,7 +54,7 @@ def make_spec(task_names, contender_texts, *, runs: int = 10, n_particles: int =
             "configs": [[t.name, c.name] for t in tlist for c in contenders],
             "runs": runs, "n_particles": n_particles,
             "timeout_s": None if timeout_s is None else float(timeout_s),
-            "baseline": baseline or names_c[0], "code": _code_fingerprint(contenders)}
+            "baseline": baseline or names_c[0], "code": _code_fingerprint(contenders, tlist)}
 
 
 def _whole(value, flag: str) -> int:
@@ -66,16 +66,23 @@ def _whole(value, flag: str) -> int:
     return int(value)
 
 
-def _code_fingerprint(contenders) -> str:
-    """pfbench's package fingerprint plus the sources of the contenders: a py: file, and the files a
-    cmd: line names (its script; a changed one was reused silently). A changed contender is
-    refused on resume instead of mixing runs of two versions."""
+def _code_fingerprint(contenders, tasks=()) -> str:
+    """pfbench's package fingerprint plus the sources of the tasks' models and of the contenders: a
+    py: file and the user's code its function reaches (:func:`pfbench.sources.digest`), and the
+    files a cmd: line names (its script; a changed one was reused silently). A changed model or
+    contender is refused on resume instead of mixing runs of two versions."""
     import os
 
+    from .. import models
     from ..backends.cache import package_fingerprint
+    from ..sources import digest, model_digest
 
     h = hashlib.sha256(package_fingerprint().encode())
+    for t in tasks:
+        h.update(model_digest(models.model_class(t.model)).encode())
     for c in contenders:
+        if getattr(c, "func", None) is not None:
+            h.update(digest([c.func]).encode())
         files = [c.target] if c.kind == "py" and c.target.endswith(".py") else [
             a for a in getattr(c, "argv", []) if os.sep in a or a.endswith(".py")]
         for path in files:

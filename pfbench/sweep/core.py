@@ -159,15 +159,12 @@ def model_label(spec: dict) -> str:
 
 def code_fingerprint(model: str) -> str:
     """Hash of the sources that determine a task's numbers (model, engine, MPF, this file)."""
-    import inspect
-    import sys
-
     from .. import models
     from ..backends.cache import package_fingerprint
+    from ..sources import model_digest
 
-    cls = models.model_class(model)
     h = hashlib.sha256(package_fingerprint().encode())
-    h.update(inspect.getsource(sys.modules[cls.__module__]).encode())
+    h.update(model_digest(models.model_class(model)).encode())  # with the user's code its functions reach
     return h.hexdigest()[:16]
 
 
