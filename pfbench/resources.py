@@ -96,8 +96,9 @@ def filter_memory(model, method: str, *, n_filters: int = 1, n_steps: int = 1, d
     if store_particles:
         per += M * (n_x * item + 8)
     if fam == "mpf":
-        ls = getattr(model, "linear_states", None)
-        d_l = 0 if ls is None else len(ls)  # a sequence: checked by the model contract first
+        from .models.contract import linear_indices
+
+        d_l = 0 if getattr(model, "linear_states", None) is None else linear_indices(model).size
         d_n = n_x - d_l
         if d_n == 0:  # every state linear: one copy whatever N_p (run_mpf)
             return MemoryNeed(int(fixed + per + 8 * M * n_x * n_x * 4), 0)

@@ -31,6 +31,7 @@ def supported(model) -> dict[str, bool]:
     """Whether ``model`` (an instance) declares what methods mpf, guided and kalman need."""
     from ..filters.guided import proposal_kind
     from ..filters.marginalized import _declares_structure
+    from .contract import linear_indices
 
     mpf = _declares_structure(model)
     try:
@@ -38,8 +39,11 @@ def supported(model) -> dict[str, bool]:
         guided = True
     except PfbenchError:
         guided = False
-    return {"mpf": mpf, "guided": guided,
-            "kalman": mpf and len(tuple(model.linear_states)) == int(model.n_x)}
+    try:  # a malformed linear_states (an int, say) supports neither, as the filters refuse it
+        kalman = mpf and linear_indices(model).size == int(model.n_x)
+    except PfbenchError:
+        mpf = kalman = False
+    return {"mpf": mpf, "guided": guided, "kalman": kalman}
 
 
 def describe(name: str) -> dict:

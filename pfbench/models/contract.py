@@ -118,10 +118,15 @@ def _check_params(model, p, path: str = "") -> None:
         raise ModelError(f"model {name_of(model)!r}: params() must return a tuple, each entry {ok}; got a "
                          f"{type(p).__name__}")
     for i, v in enumerate(p):
+        where = f"model {name_of(model)!r}: params(){path}[{i}]"
         if isinstance(v, tuple):
             _check_params(model, v, f"{path}[{i}]")
         elif not (isinstance(v, (int, float, np.number)) or (isinstance(v, np.ndarray) and v.dtype.kind in "biuf")):
-            raise ModelError(f"model {name_of(model)!r}: params(){path}[{i}] is a {type(v).__name__}; it must be {ok}")
+            raise ModelError(f"{where} is a {type(v).__name__}; it must be {ok}")
+        elif getattr(v, "dtype", None) == np.float16:  # np.sqrt(True), for one, is a float16
+            raise ModelError(f"{where} is float16, which numba cannot compile: make it a float (float32 or float64)")
+        elif isinstance(v, int) and not -2 ** 63 <= v < 2 ** 64:
+            raise ModelError(f"{where} is the integer {v}, beyond 64 bits: numba cannot hold it (make it a float)")
 
 
 def linear_indices(model) -> np.ndarray:

@@ -30,10 +30,13 @@ def _required(model: StateSpaceModel | None) -> tuple[str, ...]:
     if model is None:
         return ("time_s", "y")
     ys = ("y",) if model.n_y == 1 else tuple(f"y{i + 1}" for i in range(model.n_y))
+    return ("time_s",) + ys + _input_columns(model)
+
+
+def _input_columns(model: StateSpaceModel) -> tuple[str, ...]:
+    """The log columns of the model's inputs: its ``log_columns``, by default ``u1..u<n_u>``."""
     us = getattr(model, "log_columns", None)
-    if us is None:
-        us = tuple(f"u{i + 1}" for i in range(model.n_u))
-    return ("time_s",) + ys + tuple(us)
+    return tuple(f"u{i + 1}" for i in range(model.n_u)) if us is None else tuple(us)
 
 
 def _text(path: Path) -> str:
@@ -68,6 +71,10 @@ def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray
     if header is None:
         raise DataError(f"{path}: empty log (no header line)")
     hline = reader.line_num
+    twice = sorted({c for c in header if header.count(c) > 1})
+    if "" in header or twice:
+        what = "an empty column name (a trailing comma?)" if "" in header else f"column(s) {', '.join(twice)} twice"
+        raise DataError(f"{path}:{hline}: the header has {what}")
     missing = [c for c in required if c not in header]
     if missing:
         raise DataError(f"{path}:{hline}: missing column(s) {', '.join(missing)} in header "
@@ -125,7 +132,14 @@ def load_log(path, model: StateSpaceModel) -> Trajectory:
     else:
         yn = ("y",) if model.n_y == 1 else tuple(f"y{i + 1}" for i in range(model.n_y))
         y = np.column_stack([cols[c] for c in yn])
-        u = np.column_stack([cols[f"u{i + 1}"] for i in range(model.n_u)]) if model.n_u else None
+        us = _input_columns(model)
+        if len(us) != model.n_u:
+            from ..errors import ModelError
+
+            raise ModelError(f"model {getattr(model, 'name', type(model).__name__)!r}: log_columns names {len(us)} "
+                             f"column(s) for n_u = {model.n_u} inputs; without log_arrays(cols) each input is one "
+                             "column, in order")
+        u = np.column_stack([cols[c] for c in us]) if model.n_u else None
     if hasattr(model, "init_from_log"):
         model.init_from_log(cols)
     n = y.shape[0]

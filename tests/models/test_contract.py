@@ -298,13 +298,30 @@ class NestedText(Good):
         return (1.0, (np.ones(2), "x"))
 
 
+class HalfParams(Good):
+    name = "halfparams"
+
+    def params(self):
+        return (np.sqrt(True), np.ones(2, np.float16))  # np.sqrt of a bool is a float16
+
+
+class HugeParams(Good):
+    name = "hugeparams"
+
+    def params(self):
+        return (1.0, (2 ** 70,))
+
+
 @pytest.mark.parametrize("model, says", [
     (DictParams(), "params() must return a tuple, each entry a number, a numeric array or a tuple of them; got a dict"),
     (NestedText(), "params()[1][1] is a str"),
+    (HalfParams(), "params()[0] is float16, which numba cannot compile"),
+    (HugeParams(), "params()[1][0] is the integer 1180591620717411303424, beyond 64 bits"),
 ])
 def test_params_numba_cannot_type_are_refused_before_the_run(model, says):
     """A dict or a string in params() ran on NumPy and failed deep in numba ("Cannot determine
-    Numba type of <class 'dict'>", reported as a pfbench bug). Catches the type check dropped."""
+    Numba type of <class 'dict'>", reported as a pfbench bug), as did a float16 (NotImplementedError)
+    or an integer beyond 64 bits. Catches the type check dropped."""
     with pytest.raises(InputError) as err:
         pfbench.run_filter(model, Y, n_particles=10, backend="numpy")
     assert str(err.value).startswith(f"model {model.name!r}: {says}"), err.value
@@ -487,3 +504,18 @@ def test_a_function_the_method_needs_must_be_defined_the_others_only_if_present(
     traj = NoLoglik().simulate(4)
     with pytest.raises(InputError, match="defines no log_likelihood\\(\\), which method 'bootstrap' needs"):
         pfbench.run_filter(NoLoglik(), traj.y, n_particles=10, backend="numpy")
+
+
+def test_a_malformed_linear_states_is_the_models_error_everywhere():
+    """linear_states = 1 (not a sequence) was a TypeError in the memory check of an mpf run and broke
+    `pfbench models` for every model. Catches len() of it again."""
+    from pfbench.errors import ModelError
+    from pfbench.models import get
+    from pfbench.models.catalog import supported
+    from pfbench.resources import check_filter_memory
+
+    model = get("linear_gaussian")
+    model.linear_states = 1
+    with pytest.raises(ModelError, match="linear_states must be a sequence"):
+        check_filter_memory(model, "mpf", 100, n_steps=10)
+    assert supported(model) == {"mpf": False, "guided": False, "kalman": False}

@@ -110,3 +110,27 @@ def test_byte_order_mark_is_accepted(tmp_path):
     p = tmp_path / "bom.csv"
     p.write_bytes(GOOD.encode("utf-8-sig"))
     assert list(read_log(p))[0] == "time_s"
+
+
+def test_inputs_come_from_the_models_log_columns(tmp_path):
+    """A model naming its input column (log_columns) without log_arrays: that column is its input.
+    Catches the loader reading u1 (a KeyError, or another column when the log has a u1 too)."""
+    from types import SimpleNamespace
+
+    from pfbench.errors import ModelError
+
+    p = _write(tmp_path, "time_s,y,u1,heater\n0,1.0,7,0.5\n1,1.5,7,0.25\n")
+    model = SimpleNamespace(n_x=1, n_y=1, n_u=1, log_columns=("heater",), name="heated")
+    np.testing.assert_array_equal(load_log(p, model).u[:, 0], [0.5, 0.25])
+    with pytest.raises(ModelError, match="log_columns names 2 column"):
+        load_log(p, SimpleNamespace(n_x=1, n_y=1, n_u=1, log_columns=("u1", "heater"), name="heated"))
+
+
+@pytest.mark.parametrize("header,needle", [("time_s,y,u1,y", r"column\(s\) y twice"),
+                                           ("time_s,y,u1,", "empty column name")])
+def test_a_header_with_a_repeated_or_empty_name_is_refused(tmp_path, header, needle):
+    """Catches the last of two same-named columns silently winning, or an empty name reported as a
+    non-numeric value."""
+    p = _write(tmp_path, f"{header}\n0,1,2,3\n1,1,2,3\n")
+    with pytest.raises(DataError, match=needle):
+        read_log(p)
