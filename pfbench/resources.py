@@ -210,7 +210,8 @@ def check_memory(need: MemoryNeed, n_particles: int, *, what: str, flag: str = "
         workers = "" if lim.per_process or processes == 1 else f" per worker x {processes} workers"
         biggest = need.largest(share)
         fits = (f"the largest N_p that fits is {biggest}" if biggest >= 1 else
-                "not even N_p = 1 fits")
+                f"not even N_p = 1 fits: what does not grow with N_p (outputs per step, per filter) needs "
+                f"{fmt_bytes(need.bytes(0))}, so fewer steps or filters")
         hint = " (or use fewer --workers)" if workers else ""
         raise InputError(f"{flag} {n_particles}: {what} needs about {fmt_bytes(per_proc)}{workers} but "
                          f"only {fmt_bytes(lim.free)} is free ({lim.source}; a run may plan on "

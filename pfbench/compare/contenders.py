@@ -227,6 +227,9 @@ class PfbenchContender(Contender):
                 raise InputError(f"--contender {spec}: {key} must be >= 1, got {o[key]}")
         if not 0.0 < o.get("ess_threshold", 0.5) <= 1.0:
             raise InputError(f"--contender {spec}: ess_threshold must be a fraction in (0, 1], got {o['ess_threshold']}")
+        for key, method in (("filters", "multipdf"), ("ess_threshold", "sir")):  # as run_filter refuses them
+            if key in o and self.method != method and (key != "filters" or o[key] != 1):
+                raise InputError(f"--contender {spec}: {key} applies to pfbench:{method} only")
 
     def _kw(self):
         o = self.options

@@ -55,11 +55,15 @@ def register(name: str):
 
     While a user model file is imported (:func:`load_files`), a name already registered by a
     built-in or another file is an InputError naming both files, as is ``@register`` without a name
-    (which would otherwise register nothing and replace the class by the decorator)."""
+    (which would otherwise register nothing and replace the class by the decorator) and a name no
+    model spec could name."""
     if not isinstance(name, str) or not name.strip():
         what = f"class {name.__name__}" if isinstance(name, type) else repr(name)
         raise InputError(f"@register needs the model's name as text: write @register(\"my_model\") above "
                          f"the class, got {what}")
+    if any(c in name for c in ":,= \t"):  # they separate a model spec's parts (NAME:key=value,...)
+        raise InputError(f"@register({name!r}): a model's name cannot hold ':', ',', '=' or spaces, which "
+                         "separate the parts of a model spec (NAME:key=value,...)")
 
     def deco(cls):
         if not (isinstance(cls, type) and issubclass(cls, StateSpaceModel)):

@@ -314,7 +314,11 @@ def test_make_spec_from_python_values():
                                         ("pfbench:bootstrap:threads=0", "threads must be >= 1"),
                                         ("pfbench:multipdf:filters=0", "filters must be >= 1"),
                                         ("pfbench:sir:ess_threshold=1.5", "ess_threshold must be a fraction"),
-                                        ("pfbench:bootstrap:dtype=float16", "unknown dtype 'float16'")])
+                                        ("pfbench:bootstrap:dtype=float16", "unknown dtype 'float16'"),
+                                        # accepted, then every run failed
+                                        ("pfbench:bootstrap:filters=2", "filters applies to pfbench:multipdf only"),
+                                        ("pfbench:bootstrap:ess_threshold=0.5",
+                                         "ess_threshold applies to pfbench:sir only")])
 def test_a_pfbench_contenders_values_are_refused_up_front(spec, says):
     """They were accepted, and every run then failed with the same error (threads=0 even ran, as a
     contender named bootstrap-0). Catches any of the checks dropped."""

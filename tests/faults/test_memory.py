@@ -69,6 +69,11 @@ def test_largest_n_p_is_exact_for_the_binding_limit():
     check_memory(need, biggest, what="x", limits=lim)                    # fits exactly
     with pytest.raises(InputError, match=rf"largest N_p that fits is {biggest}\b"):
         check_memory(need, biggest + 1, what="x", limits=lim)
+    # what does not grow with N_p (the per-step outputs) alone is too big: the message says so, not
+    # only "--particles" (catches a message that sends the user to a flag that cannot help)
+    with pytest.raises(InputError, match=r"not even N_p = 1 fits: what does not grow with N_p .* needs 976.6 KiB, "
+                                         r"so fewer steps"):
+        check_memory(MemoryNeed(fixed=1_000_000, per_particle=100), 10, what="x", limits=lim)
 
 
 def test_shared_limits_count_every_worker_and_per_process_limits_one():

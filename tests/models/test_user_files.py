@@ -35,7 +35,12 @@ def test_load_files_registers_the_readme_model(readme_model_file):
                                          ("from pfbench.models import register\n"
                                           "from pfbench.models.base import StateSpaceModel\n"
                                           "@register\nclass Mine(StateSpaceModel):\n    pass\n",
-                                          "@register needs the model's name as text")])
+                                          "@register needs the model's name as text"),
+                                         # registered, but `--model my:growth` named the model 'my'
+                                         ("from pfbench.models import register\n"
+                                          "from pfbench.models.base import StateSpaceModel\n"
+                                          "@register('my:growth')\nclass Mine(StateSpaceModel):\n    pass\n",
+                                          "a model's name cannot hold ':'")])
 def test_bad_model_file_is_one_line_input_error(tmp_path, content, why):
     path = tmp_path / "bad_model.py"
     if content is not None:
