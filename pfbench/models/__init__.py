@@ -23,6 +23,8 @@ the files their parent loaded (:func:`loaded_files`), whether named by ``--model
 """
 from __future__ import annotations
 
+import hashlib
+
 import importlib
 import importlib.util
 import inspect
@@ -112,7 +114,9 @@ def load_files(paths) -> list[str]:
         if key in _FILES:
             continue
         before = dict(_REGISTRY)
-        name = f"pfbench_user_models.m{len(_FILES)}_{path.stem}"
+        # named by its path, not its place in the list: compiled kernels are cached under the module's
+        # name, so `compile --models a.py --models b.py` serves a later `--models b.py` run
+        name = f"pfbench_user_models.m{hashlib.sha1(key.encode()).hexdigest()[:10]}_{path.stem}"
         _IMPORTING.append(key)
         try:
             import_path(name, key)

@@ -18,6 +18,19 @@ def _cli(*args, env=None):
     return subprocess.run(PFBENCH + list(args), capture_output=True, text=True, timeout=600, env=env)
 
 
+def test_a_files_module_name_does_not_depend_on_the_other_files(readme_model_file):
+    """Kernels are cached under the model's module name: `compile --models a.py --models b.py` did
+    not serve a later `run --models b.py` (b was the second file there, the first here). Catches a
+    name taken from the file's place in the list. One process loads each file once, so two
+    processes load the same file second and first."""
+    a, b = readme_model_file("user_order_a"), readme_model_file("user_order_b")
+    script = ("import sys; from pfbench import models; models.load_files(sys.argv[1:]); "
+              "print(models.model_class('user_order_b').__module__)")
+    names = [subprocess.run([sys.executable, "-c", script, *files], capture_output=True, text=True, timeout=120,
+                            check=True).stdout.strip() for files in ([str(a), str(b)], [str(b)])]
+    assert names[0] == names[1] and names[0].endswith("_user_order_b")
+
+
 def test_load_files_registers_the_readme_model(readme_model_file):
     path = readme_model_file("user_growth_a")
     assert models.load_files([path]) == ["user_growth_a"]
