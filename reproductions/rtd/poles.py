@@ -113,7 +113,10 @@ def poles(ctx):
                                 f"H = 260, Q = R = 1) to 1e-9 relative (ours {rel_c:.2g})")
     ctx.claim("// Solution to the Riccati equation. (the microcontroller code's P_inf = (SQ + SR)/(H*H))", code,
               "the code's P_inf against the discrete-time ARE of pfbench's discrete RC model", disc,
-              paper="DARE solution",
+              paper="DARE solution", kind=SETUP,
+              note="a check of the listing's algebra, not a finding: which Riccati equation a closed form solves is "
+                   "decided by the formula, and the discrete reading also by the discretisation, which the chapter's "
+                   "listing does otherwise than ours (its A = -Bc, B = Bc used as discrete coefficients)",
               reading=("the discrete-time ARE: the chapter says its implemented predictors solve the DARE (Fig. 6 "
                        "caption 'by solving the DARE equation'; §4.2 'our own function to solve the Discrete "
                        "Algebraic Riccati Equation') and feeds P_inf into its discrete loop"),
