@@ -347,8 +347,11 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
 
         frame = res.to_dataframe(getattr(model, "state_names", None))
         (io.write_parquet if Path(out_file).suffix.lower() == ".parquet" else io.write_csv)(out_file, frame)
-        io.write_json(f"{out_file}.json", provenance(command="pfbench run", **{k: v for k, v in out.items()
-                                                                               if k != "rmse"}))
+        from .sources import file_hash
+
+        data_in = {"data": str(data), "data_sha256": file_hash(str(data))} if data else {}
+        io.write_json(f"{out_file}.json", provenance(command="pfbench run", **data_in,
+                                                     **{k: v for k, v in out.items() if k != "rmse"}))
     if as_json:
         from .io import to_json
 

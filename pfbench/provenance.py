@@ -79,12 +79,20 @@ def load_average() -> list[float] | None:
 
 
 def provenance(**extra) -> dict:
-    """The provenance record stored beside every result."""
+    """The provenance record stored beside every result: when, which code and machine, the command
+    line, and the user's model files (``--models``) with their sha256."""
+    import sys
+
+    from .models import loaded_files
+    from .sources import file_hash
+
     rec = {
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "git_sha": git_sha(),
         "host": host_info(),
         "packages": package_versions(),
+        "argv": list(sys.argv[1:]),
+        "model_files": {p: file_hash(p) if os.path.exists(p) else None for p in loaded_files()},
     }
     rec.update(extra)
     return rec
