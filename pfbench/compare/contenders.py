@@ -173,7 +173,8 @@ def checked_loglik(ll: float) -> float:
     """A run's log-likelihood; NaN or -inf is a failed run (it was left out of the means unseen, so a
     filter that collapsed on a hard run looked better than one that did not)."""
     if not np.isfinite(ll):
-        why = "every particle weight zero at some step" if ll == -np.inf else "not a number"
+        why = ("every particle weight zero at some step" if ll == -np.inf else
+               "not a number" if np.isnan(ll) else "not finite")
         raise RunFailed(f"log-likelihood {ll} ({why})")
     return ll
 

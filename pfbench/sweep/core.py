@@ -74,6 +74,10 @@ def make_spec(model: str, *, configs=None, particles=(100,), filters=(1,), metho
     # one value where a list is meant: particles=1000, methods="bootstrap" (it was split into letters)
     particles, filters = (v if np.iterable(v) else [v] for v in (particles, filters))
     methods = [methods] if isinstance(methods, str) else methods
+    if configs is None and any(int(f) != 1 for f in filters) and all(
+            Method.parse(m) != Method.MULTIPDF for m in methods):
+        raise InputError(f"--filters {','.join(str(f) for f in filters)}: only multipdf has sub-filters, and "
+                         f"no method here is multipdf ({', '.join(Method.parse(m).label for m in methods)})")
     if configs is None:
         configs = []
         for m in methods:

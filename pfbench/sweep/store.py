@@ -134,7 +134,8 @@ class Store:
             st = cls.read(path, repair=True)
             if spec_hash(st.spec) != spec_hash(spec):
                 diff = sorted(k for k in set(spec) | set(st.spec) if spec.get(k) != st.spec.get(k))
-                raise InputError(f"{path} holds a different sweep (differs in: {', '.join(diff)}); "
+                what = "comparison" if spec.get("kind") == "compare" else "sweep"
+                raise InputError(f"{path} holds a different {what} (differs in: {', '.join(diff)}); "
                                  "use another --out or --overwrite")
             return st
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -444,5 +444,11 @@ def test_make_spec_takes_one_value_where_a_list_is_meant():
 
     spec = make_spec("ob1", particles=100, filters=1, methods="bootstrap", runs=2, steps=5)
     assert spec["configs"] == [["bootstrap", 100, 1]]
+    # sub-filters asked of methods that have none ran N_f = 1 without a word; beside multipdf they
+    # apply to it alone
+    with pytest.raises(InputError, match="only multipdf has sub-filters"):
+        make_spec("ob1", particles=100, filters=3, methods="bootstrap", runs=2, steps=5)
+    spec = make_spec("ob1", particles=100, filters=(1, 3), methods=["bootstrap", "multipdf"], runs=2, steps=5)
+    assert spec["configs"] == [["bootstrap", 100, 1], ["multipdf", 100, 1], ["multipdf", 100, 3]]
     with pytest.raises(InputError, match="model must be a registered model spec"):
         make_spec(models.get("ob1"))
