@@ -157,9 +157,9 @@ def test_post_is_refused_on_the_array_backends(method):
     r = pfbench.run_filter(model, traj.y, traj.u, estimate="pre", **kw)
     assert r.info["estimate"] == "pre" and np.isfinite(r.estimates).all()
     with pytest.raises(InputError, match="--estimate post is not available on backend 'xp-numpy'"):
-        pfbench.sweep.make_spec("ob1", methods=[method], particles=(40,), filters=(2,), runs=1, steps=5,
-                                backend="xp-numpy", estimate="post")
-    spec = pfbench.sweep.make_spec("ob1", methods=[method], particles=(40,), filters=(2,), runs=1,
+        pfbench.sweep.make_spec("ob1", methods=[method], particles=(40,), filters=(kw["n_filters"],), runs=1,
+                                steps=5, backend="xp-numpy", estimate="post")
+    spec = pfbench.sweep.make_spec("ob1", methods=[method], particles=(40,), filters=(kw["n_filters"],), runs=1,
                                    steps=5, backend="xp-numpy", estimate="pre")
     assert spec["estimate"] == "pre"
 
