@@ -95,10 +95,11 @@ except KeyboardInterrupt:
 from pfbench.backends import interrupts
 print("casts", len(seen), "holds", interrupts._STATE["depth"], "pending", interrupts._STATE["pending"])
 """
-    # in three of five fresh-clone suites the run ended normally with no interrupt at all ("casts 1
-    # holds 0 pending []": raised in the run, not held back, and never reaching the caller), also
-    # with a kernel cache of its own and on a second try: a lost Ctrl-C, an open defect not yet explained.
-    # The crash this test is about fails the test; the lost interrupt is reported as xfail
+    # in three of five full suites (fresh clones) the run ended normally with no interrupt at all
+    # ("casts 1 holds 0 pending []": raised in the run, not held back, and never reaching the
+    # caller), also with a kernel cache of its own and on a second try: a lost Ctrl-C, an open
+    # defect not yet explained. The crash this test is about (exit -11 with the hold taken off)
+    # fails the test; the lost interrupt is reported as xfail
     import os
 
     env = dict(os.environ, PFBENCH_CACHE_DIR=str(tmp_path / "cache"))
