@@ -96,13 +96,27 @@ def digest(funcs) -> str:
 
 
 def model_digest(cls: type) -> str:
-    """Hash of a model class's module source and of what its functions depend on (:func:`digest`)."""
+    """Hash of a model class's module source (its functions' bytecode when it has none) and of what
+    its functions depend on (:func:`digest`)."""
     h = hashlib.sha256()
-    try:
-        h.update(inspect.getsource(sys.modules[cls.__module__]).encode())
-    except (OSError, TypeError, KeyError):
-        pass
     funcs = [v for k in cls.__mro__ if k is cls or user_file(k) for v in vars(k).values()
              if isinstance(v, (staticmethod, classmethod, types.FunctionType))]
+    try:
+        h.update(inspect.getsource(sys.modules[cls.__module__]).encode())
+    except (OSError, TypeError, KeyError):  # no source file (code run by exec): the functions' bytecode
+        for v in (v for k in cls.__mro__ for v in vars(k).values()):
+            if isinstance(getattr(v, "__func__", v), types.FunctionType):
+                _bytecode(getattr(v, "__func__", v).__code__, h)
     h.update(digest(funcs).encode())
     return h.hexdigest()
+
+
+def _bytecode(code: types.CodeType, h) -> None:
+    """Hash a code object's instructions and constants, nested functions included (a code object's
+    repr holds its address, different in every process)."""
+    h.update(code.co_code)
+    for c in code.co_consts:
+        if isinstance(c, types.CodeType):
+            _bytecode(c, h)
+        else:
+            h.update(repr(c).encode())

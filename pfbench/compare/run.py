@@ -75,7 +75,7 @@ def _code_fingerprint(contenders, tasks=()) -> str:
 
     from .. import models
     from ..backends.cache import package_fingerprint
-    from ..sources import digest, model_digest
+    from ..sources import digest, file_hash, model_digest
 
     h = hashlib.sha256(package_fingerprint().encode())
     for t in tasks:
@@ -87,8 +87,7 @@ def _code_fingerprint(contenders, tasks=()) -> str:
             a for a in getattr(c, "argv", []) if os.sep in a or a.endswith(".py")]
         for path in files:
             try:
-                with open(path, "rb") as f:
-                    h.update(f.read())
+                h.update(file_hash(path).encode())
             except OSError:
                 pass
     return h.hexdigest()[:16]
