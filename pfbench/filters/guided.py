@@ -74,7 +74,7 @@ from ..models.contract import shaped
 from ..resampling import Scheme
 from ..methods import Method, check_backend, check_dtype
 from .inputs import check_inputs, ess_count, seed_sequence
-from .result import FilterResult
+from .result import FilterResult, reported_ess
 
 #: model functions each kind of proposal needs (besides ``initial``)
 KINDS = {"proposal": ("proposal", "proposal_log_weight"),
@@ -447,7 +447,8 @@ def run_guided(model, y, u=None, *, n_particles: int, resampling="systematic", e
     elapsed = time.perf_counter() - t0
     return FilterResult(
         estimates=out.est, variances=out.var, loglik=float(out.inc.sum()), loglik_increments=out.inc,
-        ess=out.ess, n_resampled=int(out.resampled.sum()), degenerate=out.degen, elapsed_s=elapsed,
+        ess=reported_ess(out.ess, out.degen), n_resampled=int(out.resampled.sum()), degenerate=out.degen,
+        elapsed_s=elapsed,
         method=Method.GUIDED.label, backend=backend, dtype=dtype, n_particles=n, n_filters=1,
         extras={"resampled": out.resampled},
         info={"proposal_kind": kind, "resampling": scheme.label, "ess_threshold": threshold,

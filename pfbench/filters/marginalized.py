@@ -65,7 +65,7 @@ from ..models.contract import PROBE, call, call_returning, linear_indices, name_
 from ..resampling import Scheme
 from ..methods import check_backend, check_dtype
 from .inputs import check_inputs, seed_sequence
-from .result import FilterResult
+from .result import FilterResult, reported_ess
 
 _CL_FUNCTIONS = ("cl_transition", "cl_observation", "cl_noise", "cl_prior")
 _NEEDED = {fn: "the marginalized PF" for fn in ("initial", "cl_transition", "cl_constrain", "cl_observation")}
@@ -546,6 +546,7 @@ def _result(out, elapsed, *, method, backend, n_particles, n_resampled, info) ->
     inc = out.inc
     return FilterResult(
         estimates=out.est, variances=np.diagonal(cov, axis1=1, axis2=2).copy(),
-        loglik=float(inc.sum()), loglik_increments=inc, ess=out.ess, n_resampled=int(n_resampled),
+        loglik=float(inc.sum()), loglik_increments=inc, ess=reported_ess(out.ess, out.degen),
+        n_resampled=int(n_resampled),
         degenerate=out.degen, elapsed_s=elapsed, method=method, backend=backend, dtype="float64",
         n_particles=int(n_particles), n_filters=1, covariances=cov, info=info)

@@ -28,8 +28,8 @@ Weights are handled in log space (log-sum-exp), so an outlier that makes every l
 underflow in linear scale still gives finite, correctly normalised weights. NaN or +inf
 log-likelihoods count as zero likelihood. If *every* particle has zero likelihood at a step,
 the step is flagged in ``degenerate``, the measurement is ignored (weights kept), the filter
-carries on, and ``loglik`` becomes -inf (the estimate of p(y) really is 0); estimates never
-become NaN. NaN/inf measurements are rejected up front with the first bad step named.
+carries on, its ``ess`` is reported as 0, and ``loglik`` becomes -inf (the estimate of p(y)
+really is 0); estimates never become NaN. NaN/inf measurements are rejected up front with the first bad step named.
 """
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ from ..procs import free_cores, numba_threads
 from ..resampling import Scheme
 from ..methods import ARRAY_BACKENDS, Estimate, Method, check_backend, check_dtype
 from .inputs import ess_count, seed_sequence
-from .result import FilterResult, mixture_loglik_increments, total_variance
+from .result import FilterResult, mixture_loglik_increments, reported_ess, total_variance
 
 
 def streams(seed, n_filters: int, common_random_numbers: bool) -> list[np.random.Generator]:
@@ -100,7 +100,8 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
                                   n_threads=n_threads, store_particles=store_particles, estimate=estimate,
                                   block=_block)
         n_streams = len(rngs)
-    est, var, ess, inc = out["est"], out["var"], out["ess"], out["inc"]
+    est, var, inc = out["est"], out["var"], out["inc"]
+    ess = reported_ess(out["ess"], out["degen"])
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,

@@ -14,6 +14,13 @@ NON_FINITE_WHY = ("every particle's likelihood was zero, NaN or infinite (check 
                   "transition, or the measurement at that step)")
 
 
+def reported_ess(ess: np.ndarray, degenerate: np.ndarray) -> np.ndarray:
+    """N_eff as a result reports it: 0 where the step was degenerate. The filter kept the previous
+    weights there (N_eff of those, often N_p, decides its resampling), but no particle explained the
+    measurement, and a full N_eff would hide the step where it lost track."""
+    return np.where(degenerate, 0.0, ess)
+
+
 @dataclass
 class FilterResult:
     """What every filter returns.
@@ -28,7 +35,8 @@ class FilterResult:
     loglik : estimate of log p(y_1:M); -inf if a step was degenerate.
     loglik_increments : (M,) estimates of log p(y_t | y_1:t-1); they sum to ``loglik``.
     ess : (M,) effective sample size N_eff = 1 / sum w_i^2 after weighting ([MultiPDF] eq. 8);
-        MultiPDF: mean over the sub-filters; NaN for Kalman filters (no particles).
+        0 on a degenerate step (of that sub-filter); MultiPDF: mean over the sub-filters; NaN for
+        Kalman filters (no particles).
     n_resampled : number of resampling events (summed over sub-filters).
     degenerate : (M,) bool, steps where every likelihood was zero (in some sub-filter).
     elapsed_s : wall-clock time of the filtering (numba compilation excluded).

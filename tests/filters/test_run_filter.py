@@ -180,6 +180,23 @@ def test_all_zero_likelihood_step_is_flagged_and_filter_recovers():
         assert pfbench.metrics.armse(r.estimates[15:], traj.x[15:]) < 10
 
 
+@pytest.mark.parametrize("name,method,kw", [("ob1", "bootstrap", {}), ("ob1", "sir", {}),
+                                            ("ob1", "multipdf", {"n_filters": 2}), ("ob5", "mpf", {}),
+                                            ("pmsm_reduced", "guided", {})])
+def test_a_degenerate_step_reports_no_effective_particles(name, method, kw):
+    """The step where every likelihood was zero reports N_eff = 0 (the kept weights' N_eff, N_p for a
+    bootstrap filter, hid it), the others a positive N_eff. Catches a filter family whose result
+    reports the kept weights' N_eff."""
+    model = models.get(name)
+    traj = model.simulate(30, seed=1)
+    y = traj.y.copy()
+    y[10] = 1e200
+    with np.errstate(all="ignore"):
+        r = pfbench.run_filter(model, y, traj.u, method=method, n_particles=200, backend="numpy", seed=1, **kw)
+    assert r.degenerate.nonzero()[0].tolist() == [10]
+    assert r.ess[10] == 0 and np.all(np.delete(r.ess, 10) > 0)
+
+
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
 def test_nan_measurement_names_the_step(bad):
     model = models.get("ob1")
