@@ -295,7 +295,7 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
     if data:
         from .plants.datalog import load_log
 
-        traj = load_log(data, model)
+        traj = load_log(data, model, max_rows=steps if _given("steps") else None)
         if _given("steps"):
             traj = _first_rows(traj, steps, data)
     else:
@@ -395,7 +395,8 @@ def _refuse_unused(method: str, data) -> None:
 
 
 def _first_rows(traj, steps: int, data):
-    """The first ``steps`` rows of a loaded log (``--steps`` with ``--data``)."""
+    """The first ``steps`` rows of a log loaded up to that many rows (``--steps`` with ``--data``);
+    fewer rows are refused."""
     import dataclasses
 
     if steps > traj.n_steps:

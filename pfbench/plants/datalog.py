@@ -54,8 +54,9 @@ def _text(path: Path) -> str:
                         "save the log as UTF-8 CSV") from None
 
 
-def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray]:
-    """Read and validate a log; returns {column: float64 array} for every column in the header.
+def read_log(path, required=("time_s", "y", "u1", "u2"), max_rows: int | None = None) -> dict[str, np.ndarray]:
+    """Read and validate a log; returns {column: float64 array} for every column in the header,
+    of its first ``max_rows`` data rows (None: all; the rows after them are neither parsed nor checked).
 
     Raises DataError (one line, naming the line) for a missing file or column, text that is not
     UTF-8, an empty log, a short row, a non-numeric or non-finite value, non-increasing time or a
@@ -82,6 +83,8 @@ def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray
     data: list[list[float]] = []
     lines: list[int] = []
     for row in reader:
+        if max_rows is not None and len(data) >= max_rows:
+            break
         if not row or not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
             continue
         line = reader.line_num
@@ -119,14 +122,15 @@ def read_log(path, required=("time_s", "y", "u1", "u2")) -> dict[str, np.ndarray
     return cols
 
 
-def load_log(path, model: StateSpaceModel) -> Trajectory:
-    """Load a chamber log for ``model``: validated (y, u) and NaN true states.
+def load_log(path, model: StateSpaceModel, max_rows: int | None = None) -> Trajectory:
+    """Load a chamber log for ``model``, its first ``max_rows`` data rows (None: all): validated (y, u)
+    and NaN true states.
 
     Models may define ``log_arrays(cols) -> (y, u)`` (e.g. thermal_outdoor uses y - t_out) and
     ``init_from_log(cols)`` (the thermal models initialise the PF from the first measurement
     y(0), [Embedded] §4.2) -- note this sets the model's y0 in place.
     """
-    cols = read_log(path, required=_required(model))
+    cols = read_log(path, required=_required(model), max_rows=max_rows)
     if hasattr(model, "log_arrays"):
         y, u = model.log_arrays(cols)
     else:

@@ -87,6 +87,9 @@ def test_cli_run_on_log_and_bad_log(tmp_path):
     r = CliRunner().invoke(main, ["run", "--model", "thermal_inertial", "--data", str(bad), "--backend", "numpy"])
     assert r.exit_code == 2
     assert "error:" in r.output and "log.csv:4: time not increasing" in r.output
+    r = CliRunner().invoke(main, ["run", "--model", "thermal_inertial", "--data", str(bad), "--backend", "numpy",
+                                  "--steps", "2", "--json"])  # the bad row is past the rows asked for
+    assert r.exit_code == 0 and '"n_steps": 2,' in r.output, r.output
 
 
 def test_example_log_is_valid():
