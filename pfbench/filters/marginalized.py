@@ -61,7 +61,7 @@ from ..backends.mpf_work import outputs
 from ..backends.numpy_backend import valid_log_likelihood, weigh
 from ..errors import InputError, ModelError, UnsupportedError
 from ..models.base import LOG_2PI as _LOG2PI, StateSpaceModel
-from ..models.contract import PROBE, call, call_returning, linear_indices, name_of, returned, shaped
+from ..models.contract import PROBE, call, call_returning, defined, linear_indices, name_of, returned, shaped
 from ..resampling import Scheme
 from ..methods import check_backend, check_dtype
 from .inputs import check_inputs, seed_sequence
@@ -296,13 +296,15 @@ def _psd(a: np.ndarray, what: str, definite: bool) -> None:
             raise InputError(f"{what} must be positive semi-definite")
 
 
-def structure(model, y, u) -> dict:
+def structure(model, y, u, method: str = "mpf") -> dict:
     """The validated linear-Gaussian split of ``model`` (UnsupportedError if it declares none).
 
     Returns the index arrays ``idx_n``/``idx_l``, the noise blocks (``Qn``, decorrelated ``Ql``,
     ``T``, ``corr``), the measurement whitening (``W``, ``rvar``, ``whiten``, ``logdet``, the
     whitened measurements ``yw``) and the x^l prior (``m0``, ``P0``). The model's functions are
-    called once on a probe block to check what they return (:func:`structure_check`).
+    called once on a probe block to check what they return (:func:`structure_check`) and that they
+    describe the model of its ``transition`` and ``observe`` (:func:`check_agreement`; ``method``
+    names the method in that message).
     """
     name = f"model {name_of(model)!r}"
     if not _declares_structure(model):
@@ -345,7 +347,7 @@ def structure(model, y, u) -> dict:
         yw = np.ascontiguousarray(y @ W.T)
     else:
         W, rvar, logdet, yw = np.eye(n_y), np.diag(R).copy(), 0.0, y
-    _check_shapes(model, u, idx_n, d_l, m0)
+    _check_shapes(model, u, idx_n, idx_l, m0, method)
     c = np.ascontiguousarray
     return dict(idx_n=idx_n, idx_l=idx_l, d_n=d_n, d_l=d_l, Qn=c(Qn), Ql=c(Ql), T=c(T), corr=corr,
                 W=c(W), rvar=c(rvar), whiten=whiten, logdet=logdet, yw=c(yw), m0=c(m0), P0=c(P0))
@@ -377,19 +379,83 @@ def structure_check(model, n: int, d_n: int, d_l: int, n_y: int):
     return check
 
 
-def _check_shapes(model, u, idx_n, d_l, m0) -> None:
-    """Call the model's structure functions once on a probe block and check what they return."""
+def _check_shapes(model, u, idx_n, idx_l, m0, method: str) -> None:
+    """Call the model's structure functions once on a probe block, check what they return, and that
+    they describe the model of ``transition`` and ``observe`` (:func:`check_agreement`) on the probe
+    and on the probe moved one step (a fixed initial state, Ob2's 0, makes every term vanish)."""
     p = model.params()
-    n, d_n = PROBE, idx_n.size
+    n, d_n, d_l = PROBE, idx_n.size, idx_l.size
     check = structure_check(model, n, d_n, d_l, int(model.n_y))
-    xn = np.zeros((n, 0))
-    if d_n:
-        x = shaped(model, "initial", call(model, "initial", _NEEDED, np.random.default_rng(0), n, p),
-                   (n, int(model.n_x)))
-        xn = np.ascontiguousarray(x[:, idx_n], dtype=np.float64)
+    have = defined(model)
+    x = None
+    if d_n or "initial" in have:  # the Kalman family draws no x^n: initial may refuse (None)
+        x = call(model, "initial", _NEEDED if d_n else {}, np.random.default_rng(0), n, p)
+        x = None if x is None else shaped(model, "initial", x, (n, int(model.n_x))).astype(np.float64)
+    xn = np.ascontiguousarray(x[:, idx_n]) if d_n else np.zeros((n, 0))
     check("cl_transition", call(model, "cl_transition", _NEEDED, xn, u[0], 0, p))
     check("cl_constrain", call(model, "cl_constrain", _NEEDED, xn.copy(), p))
     check("cl_observation", call(model, "cl_observation", _NEEDED, xn, np.tile(m0, (n, 1)), u[0], 0, p))
+    if x is None or "transition" not in have:
+        return
+    noise = np.random.default_rng(1).standard_normal((n, int(model.n_noise)))
+    moved = call(model, "transition", {}, x, u[0], 0, noise, p)
+    for at in (x,) if moved is None else (x, shaped(model, "transition", moved, x.shape).astype(np.float64)):
+        check_agreement(model, at, u[0], p, idx_n, idx_l, method, observe="observe" in have)
+
+
+def check_agreement(model, x, u0, p, idx_n, idx_l, method: str, observe: bool = True) -> None:
+    """The declared structure ([Schon2005] eq. 3) is the model that ``transition`` and ``observe``
+    describe (the simulator's and the particle methods'), else ``method`` filters another model than
+    the one that made the data: a ModelError naming the function, the first state (output) that
+    differs and both values.
+
+    At the states ``x`` (n, n_x), t = 0 and ``u0``, with zero noise: the x^n columns of
+    ``transition`` are cl_constrain(f^n + A^n x^l) (the MPF constrains its draw of x^n, as a
+    transition constrains its result), the x^l columns f^l + A^l x^l, and ``observe`` is h of
+    cl_observation at the particles' own x^l. Zero noise gives the noise-free part exactly when the
+    noise enters as a matrix times standard normals, as the structure's Gaussian noise does.
+    Tolerance: 1e-9 (about 4.5e6 ulp) of the largest magnitude of the terms in that column, for sums
+    in another order; non-finite values are not compared (the noise checks name them)."""
+    n, d_n, d_l = x.shape[0], idx_n.size, idx_l.size
+    xn, xl = np.ascontiguousarray(x[:, idx_n]), np.ascontiguousarray(x[:, idx_l])
+
+    def times(A, v):  # per particle: A v
+        return np.einsum("nij,nj->ni", A, v)
+
+    def floats(fn, names, shapes, *args):  # None where a shape is wrong: structure_check names it
+        out = call_returning(model, fn, names, *args)
+        out = [np.asarray(v) for v in ((out,) if names is None else out)]
+        ok = all(v.dtype.kind in "fiu" and v.shape == s for v, s in zip(out, shapes))
+        return [v.astype(np.float64) for v in out] if ok else None
+
+    def compare(fn, mine, cl_fn, theirs, terms, where, how):
+        scale = np.maximum(np.maximum(np.abs(mine), np.abs(theirs)), terms).max(axis=0)
+        bad = np.isfinite(mine) & np.isfinite(theirs) & (np.abs(mine - theirs) > 1e-9 * scale)
+        if bad.any():
+            j, i = np.argwhere(bad.T)[0]  # the lowest state (output) that differs
+            raise ModelError(f"model {name_of(model)!r}: {fn}() and {cl_fn}() disagree: with zero noise {where(j)} is "
+                             f"{mine[i, j]:.12g} by {fn}, {theirs[i, j]:.12g} by {cl_fn} ({how(j)}); method "
+                             f"{method!r} would filter another model")
+
+    mine = call(model, "transition", {}, x, u0, 0, np.zeros((n, int(model.n_noise))), p)
+    tr = mine is not None and floats("cl_transition", ("f^n", "A^n", "f^l", "A^l"),
+                                     ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l)), xn, u0, 0, p)
+    xc = tr and floats("cl_constrain", None, ((n, d_n),), tr[0] + times(tr[1], xl), p)
+    if xc:
+        f_n, A_n, f_l, A_l = tr
+        cl, terms = np.empty(x.shape), np.empty(x.shape)
+        cl[:, idx_n], terms[:, idx_n] = xc[0], np.abs(f_n) + times(np.abs(A_n), np.abs(xl))
+        cl[:, idx_l], terms[:, idx_l] = f_l + times(A_l, xl), np.abs(f_l) + times(np.abs(A_l), np.abs(xl))
+        part = {int(k): f"x^n[{c}]" for c, k in enumerate(idx_n)} | {int(k): f"x^l[{c}]" for c, k in enumerate(idx_l)}
+        compare("transition", shaped(model, "transition", mine, x.shape), "cl_transition", cl, terms,
+                lambda j: f"state {j} ({part[j]})",
+                lambda j: "f^l + A^l x^l" if j in idx_l else "cl_constrain(f^n + A^n x^l)")
+    n_y = int(model.n_y)
+    mine = call(model, "observe", {}, x, u0, 0, np.zeros((n, int(model.obs_noise_dim))), p) if observe else None
+    ob = mine is not None and floats("cl_observation", ("h", "C"), ((n, n_y), (n, n_y, d_l)), xn, xl, u0, 0, p)
+    if ob:
+        compare("observe", shaped(model, "observe", mine, (n, n_y)), "cl_observation", ob[0],
+                times(np.abs(ob[1]), np.abs(xl)), lambda j: f"output {j}", lambda j: "h at the particle's own x^l")
 
 
 # --------------------------------------------------------------------------- drivers
@@ -458,12 +524,13 @@ def _warm_up(model, p, n, s, u, scheme) -> None:
     _WARM.add(key)
 
 
-def _filter(model, y, u, *, n, backend, resampling, seed):
-    """Run the recursion with ``n`` particles; returns (structure, arrays, elapsed_s)."""
+def _filter(model, y, u, *, n, backend, resampling, seed, method="mpf"):
+    """Run the recursion with ``n`` particles for ``method`` (its name in messages); returns
+    (structure, arrays, elapsed_s)."""
     check_backend(backend)
     scheme = int(Scheme.parse(resampling))
     y, u = check_inputs(model, y, u)
-    s = structure(model, y, u)
+    s = structure(model, y, u, method)
     if s["d_n"] == 0:
         n = 1
     rng = np.random.default_rng(seed_sequence(seed))
@@ -534,7 +601,8 @@ def run_kalman(model, y, u=None, *, backend: str = "numba") -> FilterResult:
                 f"method 'kalman' needs every state of model {name_of(model)!r} "
                 f"in its linear substructure, but {d_n} state(s) are nonlinear "
                 f"(linear_states = {tuple(model.linear_states)}); use method 'mpf'")
-    s, _, out, elapsed = _filter(model, y, u, n=1, backend=backend, resampling="systematic", seed=0)
+    s, _, out, elapsed = _filter(model, y, u, n=1, backend=backend, resampling="systematic", seed=0,
+                                 method="kalman")
     out.ess[:] = np.nan
     info = {"linear_states": [int(i) for i in s["idx_l"]], "whitened_measurement": s["whiten"]}
     return _result(out, elapsed, method="kalman", backend=backend, n_particles=0, n_resampled=0,

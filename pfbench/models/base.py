@@ -144,7 +144,9 @@ class StateSpaceModel:
     #:     y_t   = h(x^n_t, x^l_t) + e,                               e ~ N(0, R)
     #:
     #: The ``cl_*`` staticmethods follow the rules of the four model functions (vectorised over
-    #: particles, parameters in ``p``, numba-compilable); the numba backend compiles them.
+    #: particles, parameters in ``p``, numba-compilable); the numba backend compiles them. They
+    #: must describe the model of ``transition`` and ``observe``: methods mpf and kalman check
+    #: that on a probe block (:func:`pfbench.filters.marginalized.check_agreement`).
     linear_states: tuple[int, ...] | None = None
 
     @staticmethod
