@@ -79,7 +79,8 @@ DEFINITIONS = {
            "and did not.",
     DISAGREE: "our 95 % interval lies wholly outside that band (or wholly on the other side of zero).",
     UNDECIDED: "the interval straddles an edge of the band: at this number of runs our data cannot "
-               "tell.",
+               "tell (for a range that is not of random runs, such as an emulation's best-worst "
+               "timing: the answer lies within what that range leaves open).",
     NOT_REPRODUCIBLE: "the claim rests on something we do not have (the paper's measured data or "
                       "program, a lost equation, a guessed noise level, a plant asymmetry a "
                       "simulation cannot have); the rule gives the reason.",
