@@ -63,13 +63,27 @@ def test_bad_input_is_one_line_exit_2(args, needle):
     assert needle in _one_error_line(r.stderr)
 
 
-@pytest.mark.parametrize("env, needle", [({"NUMBA_NUM_THREADS": "0"}, "NUMBA_NUM_THREADS='0': numba needs a positive"),
-                                         ({"NUMBA_NUM_THREADS": "abc"}, "NUMBA_NUM_THREADS='abc'"),
-                                         ({"NUMBA_THREADING_LAYER": "foo"}, "NUMBA_THREADING_LAYER='foo': numba knows")])
+def _tbb_loads() -> bool:
+    try:
+        import numba.np.ufunc.tbbpool  # noqa: F401
+    except (ImportError, OSError):
+        return False
+    return True
+
+
+@pytest.mark.parametrize("env, needle", [
+    ({"NUMBA_NUM_THREADS": "0"}, "NUMBA_NUM_THREADS='0': numba needs a positive"),
+    ({"NUMBA_NUM_THREADS": "abc"}, "NUMBA_NUM_THREADS='abc'"),
+    ({"NUMBA_THREADING_LAYER": "foo"}, "NUMBA_THREADING_LAYER='foo': numba knows"),
+    pytest.param({"NUMBA_THREADING_LAYER": "tbb"}, "numba's threads cannot start here (No threading layer",
+                 marks=pytest.mark.skipif(_tbb_loads(), reason="TBB is installed here")),
+    ({"NUMBA_DISABLE_JIT": "1"}, "NUMBA_DISABLE_JIT is set: the numba backend needs numba's compiler")])
 def test_numba_settings_in_the_environment_are_checked_first(env, needle):
     """In a real process, where numba reads them at its import: 0 was numba's own traceback at import
     (reported as a pfbench bug), an unknown layer failed only when threads started, blamed on the
-    model. Catches the check dropped or run after numba's import."""
+    model; a known layer that cannot load here (TBB not installed) and the JIT switched off (a
+    model-debugging habit) were tracebacks from inside a compile. Catches each check dropped or
+    run after numba's import or compile."""
     r = subprocess.run([sys.executable, "-m", "pfbench.cli", "run", "--model", "ob1", "--particles", "20000",
                         "--steps", "3", "--threads", "2"], capture_output=True, text=True, timeout=300,
                        env=dict(os.environ, **env))

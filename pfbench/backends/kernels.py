@@ -27,6 +27,7 @@ import threading
 import types
 from dataclasses import dataclass
 
+from ..errors import InputError
 from ..sources import model_digest
 from . import cache
 
@@ -113,6 +114,9 @@ def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> ty
     with _LOCK:
         if key in _MODULES:
             return _MODULES[key]
+        if os.environ.get("NUMBA_DISABLE_JIT", "0").strip() not in ("", "0"):  # numba would run nothing compiled
+            raise InputError("NUMBA_DISABLE_JIT is set: the numba backend needs numba's compiler; unset it, or "
+                             "step through the model's plain Python on --backend numpy")
         if disk_cacheable(cls):  # an unusable cache directory is one line naming it, before any compile
             cache.check_cache_dir()
         digest = _source_fingerprint(cls, fam).hex()[:16]

@@ -11,6 +11,7 @@ import numba
 import numpy as np
 from numba.core.errors import NumbaPendingDeprecationWarning
 
+from ..errors import InputError
 from ..methods import Estimate
 from ..models.contract import compiled_model_code
 from ..procs import free_cores
@@ -61,6 +62,12 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
     settings = Settings(int(model.n_noise), int(method), int(scheme), float(ess_threshold),
                         Estimate.parse(estimate) == Estimate.POST, 0, 0, 0)
     parallel = len(brngs) > 1 and n_threads != 1
+    if parallel:  # numba starts its threading layer on first use, in a compile too: one line if it cannot
+        try:
+            numba.get_num_threads()
+        except ValueError as exc:
+            raise InputError(f"numba's threads cannot start here ({' '.join(str(exc).split())}); unset "
+                             "NUMBA_THREADING_LAYER for the default") from None
     driver = mod.run_group_parallel if parallel else mod.run_group
     with warnings.catch_warnings():  # the block generators travel as a (reflected) list
         warnings.simplefilter("ignore", NumbaPendingDeprecationWarning)
