@@ -102,6 +102,7 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
         n_streams = len(rngs)
     est, var, inc = out["est"], out["var"], out["inc"]
     ess = reported_ess(out["ess"], out["degen"])
+    resampled = out["resampled"] | (method == Method.ASIR)  # ASIR resamples in its first stage, every step
     increments = mixture_loglik_increments(inc)
     mean, variance = total_variance(est, var)
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
@@ -114,11 +115,11 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
                         f"{n_filters} x {n_per} = {n_per * n_filters} particles were used")
     return FilterResult(
         estimates=mean, variances=variance, loglik=float(increments.sum()),
-        loglik_increments=increments, ess=ess.mean(axis=0), n_resampled=int(out["resampled"].sum()),
+        loglik_increments=increments, ess=ess.mean(axis=0), n_resampled=int(resampled.sum()),
         degenerate=out["degen"].any(axis=0), elapsed_s=elapsed, method=method.label, backend=backend,
         dtype=dtype, n_particles=n_per * n_filters, n_filters=n_filters, sub_estimates=est,
         sub_variances=var, sub_ess=ess, info=info,
-        extras={"resampled": out["resampled"], **({"particles": out["particles"], "weights": out["weights"]}
+        extras={"resampled": resampled, **({"particles": out["particles"], "weights": out["weights"]}
                                                   if store_particles else {})})
 
 

@@ -37,7 +37,8 @@ class FilterResult:
     ess : (M,) effective sample size N_eff = 1 / sum w_i^2 after weighting ([MultiPDF] eq. 8);
         0 on a degenerate step (of that sub-filter); MultiPDF: mean over the sub-filters; NaN for
         Kalman filters (no particles).
-    n_resampled : number of resampling events (summed over sub-filters).
+    n_resampled : number of resampling events (summed over sub-filters; ASIR: one per step, its
+        first stage).
     degenerate : (M,) bool, steps where every likelihood was zero (in some sub-filter).
     elapsed_s : wall-clock time of the filtering (numba compilation excluded).
     method, backend, dtype : what ran.

@@ -140,6 +140,16 @@ def test_pf_likelihood_is_unbiased():
     assert abs(ratios.mean() - 1.0) < 3 * se
 
 
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_asir_counts_the_resampling_of_its_first_stage(backend):
+    """ASIR resamples once every step, in its first stage ([Thesis] Alg. 6); its second stage never
+    does. Catches a count of the second stage only (0 resamplings reported)."""
+    model = models.get("ob1")
+    traj = model.simulate(20, seed=1)
+    r = pfbench.run_filter(model, traj.y, method="asir", n_particles=100, backend=backend, seed=1)
+    assert r.n_resampled == 20 and r.extras["resampled"].all()
+
+
 def test_asir_and_multipdf_likelihoods_are_unbiased():
     model = _lg_model()
     traj = model.simulate(15, seed=10)
