@@ -17,6 +17,7 @@ from ..errors import DataError, InputError
 from ..clitypes import OUT_FILE, ChoiceList, NonEmptyPath, complete_models
 from ..methods import BACKENDS, ESTIMATES, METHODS
 from ..options import check_known, comma_list, parse_key_values, typed
+from ..resampling import SCHEMES
 
 
 def _ints(value, name: str) -> list[int]:
@@ -74,6 +75,8 @@ _OPTIONS = [
     click.option("--steps", type=int, default=None, help="Time steps M per run."),
     click.option("--backend", type=click.Choice(BACKENDS), default=None,
                  help="numba (default), numpy or cupy (a GPU)."),
+    click.option("--resampling", type=click.Choice(SCHEMES), default=None,
+                 help="Resampling scheme of every configuration (default systematic)."),
     click.option("--estimate", type=click.Choice(ESTIMATES), default=None,
                  help="Point estimate of a step: pre (default; weighted, before resampling) or post "
                       "(the resampled particles, [MultiPDF] Alg. 1-2) for the particle methods; mpf, "
@@ -99,7 +102,7 @@ def _with_options(f):
 
 #: keys a grid file may hold (the options above, plus ``params`` as a mapping)
 GRID_KEYS = ("model", "param", "params", "particles", "filters", "method", "runs", "steps",
-             "backend", "estimate", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
+             "backend", "resampling", "estimate", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
 
 
 def _do_run(kw: dict) -> None:
@@ -134,7 +137,8 @@ def _do_run(kw: dict) -> None:
                      runs=typed(opts.get("runs", 10), int, "--runs"),
                      steps=typed(opts.get("steps", 100), int, "--steps"),
                      seed=typed(opts.get("seed", 0), int, "--seed"),
-                     backend=str(opts.get("backend", "numba")), estimate=str(opts.get("estimate", "pre")))
+                     backend=str(opts.get("backend", "numba")), resampling=str(opts.get("resampling", "systematic")),
+                     estimate=str(opts.get("estimate", "pre")))
     try:
         workers = opts.get("workers")
         rep = run_sweep(spec, out, workers=None if workers is None else typed(workers, int, "--workers"),

@@ -294,6 +294,25 @@ def test_grid_file(tmp_path):
     assert r.exit_code == 2 and "unknown model" in r.output
 
 
+def test_sweep_takes_a_resampling_scheme(tmp_path):
+    """`--resampling` (or a grid's ``resampling``) reaches every configuration: the store's spec
+    holds it and the runs differ from the default's, paired on the same seeds. Catches the option
+    accepted but not passed on (the default, systematic, run silently)."""
+    from pfbench.cli import main
+
+    armse = {}
+    for scheme in ("systematic", "multinomial"):
+        out = tmp_path / f"{scheme}.jsonl"
+        r = CliRunner().invoke(main, ["sweep", "--model", "ob1", "--method", "bootstrap", "--particles", "50",
+                                      "--runs", "2", "--steps", "10", "--workers", "1", "--quiet", "--backend",
+                                      "numpy", "--resampling", scheme, "--out", str(out)])
+        assert r.exit_code == 0, r.output
+        st = Store.read(out)
+        assert st.spec["resampling"] == scheme
+        armse[scheme] = st.frame()["armse"].tolist()
+    assert armse["systematic"] != armse["multinomial"]
+
+
 def test_seed_keys_of_existing_methods_never_change():
     # Stored sweeps of multipdf / bootstrap / mpf keep their numbers only if these stay put.
     assert {m: SEED_KEY[m] for m in ("multipdf", "bootstrap", "mpf")} == {"multipdf": 0, "bootstrap": 1,
