@@ -264,7 +264,8 @@ def truth_stream(seed: int):
               help="Write the per-step estimates, variances, ESS and log-likelihood increments to this "
                    ".csv or .parquet file (and the run's provenance to <file>.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
-@click.option("--strict", is_flag=True, help="A non-finite log-likelihood is an error (exit 2), not a warning.")
+@click.option("--strict", is_flag=True, help="A non-finite log-likelihood, or one the model returned as NaN or "
+              "+inf for some particles, is an error (exit 2), not a warning.")
 def run(model_name, method, particles, filters, steps, resampling, ess_threshold, estimate, backend, dtype,
         threads, seed, truth_seed, params, data, out_file, as_json, strict):
     """Simulate a model, run a filter, print aRMSE, log-likelihood and speed."""
@@ -341,6 +342,14 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         if strict:
             raise PfbenchError(why)
         click.echo(f"warning: {why}", err=True)
+    from .filters.result import invalid_message
+
+    invalid = invalid_message(res.info)
+    if invalid:
+        out["invalid_log_likelihoods"] = res.info["invalid_log_likelihoods"]
+        if strict:
+            raise PfbenchError(invalid)
+        click.echo(f"warning: {invalid}", err=True)
     if out_file:
         from . import io
         from .provenance import provenance

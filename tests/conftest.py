@@ -21,6 +21,44 @@ def readme_model_file(tmp_path):
     return write
 
 
+#: a user's model with a slip: y = log x + e with x a random walk from 1, so its log-likelihood is NaN
+#: for every particle that wandered below 0 (and -inf, a valid zero likelihood, at exactly 0)
+LOG_OF_STATE = """
+import numpy as np
+from pfbench.models import StateSpaceModel, register
+
+@register("{name}")
+class LogOfState(StateSpaceModel):
+    n_x, n_y, n_noise = 1, 1, 1
+    def params(self):
+        return (0.5,)
+    @staticmethod
+    def initial(rng, n, p):
+        return rng.normal(1.0, 0.5, (n, 1))
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        return x + p[0] * noise
+    @staticmethod
+    def log_likelihood(y, x, u, t, p):
+        r = y[0] - np.log(x[:, 0])
+        return -0.5 * r * r
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        return np.log(np.abs(x)) + noise
+"""
+
+
+@pytest.fixture
+def log_of_state_file(tmp_path):
+    """:data:`LOG_OF_STATE` saved as a user's ``.py`` file under a fresh registry name; returns a
+    function ``name -> path``."""
+    def write(name: str) -> Path:
+        path = tmp_path / f"{name}.py"
+        path.write_text(LOG_OF_STATE.format(name=name))
+        return path
+    return write
+
+
 @pytest.fixture
 def scripted_end_to_end(monkeypatch):
     """A function running ``pfbench.bench.scaling.run_end_to_end`` over 3 rounds, with run_filter

@@ -5,11 +5,13 @@ import ast
 import inspect
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
 import types
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -196,6 +198,23 @@ def test_run_multipdf_uneven_split_prints_note():
                 "--steps", "10", "--backend", "numpy")
     assert r.exit_code == 0, r.output
     assert "n_particles: 99" in r.stdout and "note: N_p = 100" in r.stdout
+
+
+def test_run_warns_of_the_models_nan_log_likelihoods_and_strict_refuses(log_of_state_file):
+    """A model whose log_likelihood is NaN for some particles (log of a negative state): the run
+    says how many, at how many steps and the first, and goes on (weight zero); --strict makes it an
+    error. Catches the count kept in info but never said."""
+    f = log_of_state_file("cli_log_of_state")
+    args = ["--models", str(f), "run", "--model", "cli_log_of_state", "--backend", "numpy", "--particles", "500",
+            "--steps", "15"]
+    with np.errstate(all="ignore"):
+        r = _invoke(*args, "--json")
+        assert r.exit_code == 0, r.output
+        assert json.loads(r.stdout)["invalid_log_likelihoods"] > 0
+        assert re.search(r"^warning: log_likelihood returned NaN or \+inf for \d+ particle\(s\) at \d+ step\(s\), "
+                         r"first at step \d+: those particles got weight zero", r.stderr, re.M), r.stderr
+        r = _invoke(*args, "--strict")
+    assert r.exit_code == 2 and "log_likelihood returned NaN or +inf" in _one_error_line(r.stderr)
 
 
 def test_run_kalman_on_linear_gaussian():

@@ -119,7 +119,8 @@ def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> ty
                              "step through the model's plain Python on --backend numpy")
         if disk_cacheable(cls):  # an unusable cache directory is one line naming it, before any compile
             cache.check_cache_dir()
-        digest = _source_fingerprint(cls, fam).hex()[:16]
+        parts = (cache.package_fingerprint(), fam.template, str(disk_cacheable(cls)), model_digest(cls))
+        digest = hashlib.sha256("\0".join(parts).encode()).hexdigest()[:16]
         safe = "".join(c if c.isalnum() else "_" for c in f"{cls.__module__}_{cls.__qualname__}")
         name = f"pfbench_kernel_{family}_{'any' if code < 0 else code}{'_f' if tiles else ''}_{safe}_{digest}"
         spec = importlib.util.find_spec(f"{__package__}.{fam.template}")
@@ -185,11 +186,6 @@ def disk_cacheable(cls: type) -> bool:
         return importlib.util.find_spec(cls.__module__) is not None
     except (ImportError, ValueError):
         return False
-
-
-def _source_fingerprint(cls: type, fam: Family) -> bytes:
-    parts = (cache.package_fingerprint(), fam.template, str(disk_cacheable(cls)), model_digest(cls))
-    return hashlib.sha256("\0".join(parts).encode()).digest()
 
 
 def twin(func, name: str):

@@ -95,8 +95,9 @@ def run_group(model, p, rng, y, u, out, method, scheme, ess_threshold, *, brngs=
                 numba.set_num_threads(k)
                 try:
                     driver(*args)
-                except SystemError as exc:
-                    raise _raised_in_parallel(exc) from None
+                except SystemError as exc:  # a parallel region's exception is its cause: raised as serially
+                    c = exc.__cause__
+                    raise c if isinstance(c, Exception) and not isinstance(c, SystemError) else exc from None
 
 
 def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f_tiles: bool = False) -> list:
@@ -125,13 +126,6 @@ def native_addresses(model, family: str, mod, driver, args, calls, *, here=(), f
                     finally:  # after Ctrl-C (delivered when the compile ends) or an error: not wanted
                         compile_helper.stop(helper)
         return [native_call.entry_address(f, a) for _, f, a, _ in funcs]
-
-
-def _raised_in_parallel(exc: SystemError) -> BaseException:
-    """The exception compiled code raised in a parallel region (numba reports it as the cause of a
-    SystemError), so the all-threads kernel raises what the serial one does; else ``exc``."""
-    cause = exc.__cause__
-    return cause if isinstance(cause, Exception) and not isinstance(cause, SystemError) else exc
 
 
 # --------------------------------------------------------------------------- the MPF family

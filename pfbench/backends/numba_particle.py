@@ -49,8 +49,8 @@ from pfbench.backends.numba_resampling import gather as _gather
 from pfbench.backends.numba_resampling import merge_gather as _merge_gather
 from pfbench.backends.numba_weights import block_moments as _block_moments
 from pfbench.backends.particle_work import Step as _Step
-from pfbench.backends.particle_work import B_MAX as _B_MAX, B_OFFSET as _B_OFFSET, B_SUM as _B_SUM
-from pfbench.backends.particle_work import B_SUM_SQ as _B_SUM_SQ, F_CDF as _F_CDF, F_LAM as _F_LAM
+from pfbench.backends.particle_work import B_INVALID as _B_INVALID, B_MAX as _B_MAX, B_OFFSET as _B_OFFSET
+from pfbench.backends.particle_work import B_SUM as _B_SUM, B_SUM_SQ as _B_SUM_SQ, F_CDF as _F_CDF, F_LAM as _F_LAM
 from pfbench.backends.particle_work import F_LAM_ALL as _F_LAM_ALL, F_UNIFORMS as _F_UNIFORMS
 from pfbench.backends.particle_work import F_WEIGHTS as _F_WEIGHTS
 from pfbench.backends.numba_weights import block_weights as _pass_b
@@ -247,6 +247,7 @@ def _pass_a(p, brng, y, u, work, settings, step):
     lam = fw[_F_LAM] if fw.shape[0] > _F_LAM else la
     lam_out = fw[_F_LAM_ALL] if fw.shape[0] > _F_LAM else la
     m = -_np.inf
+    bad = 0
     bin_ = _tile_buffer(xs, i1 - i0)  # float32: the model's input and the stored states, in float64
     bout = _tile_buffer(xs, i1 - i0)
     for s in range(i0, i1, _TILE):
@@ -274,6 +275,8 @@ def _pass_a(p, brng, y, u, work, settings, step):
         ll = _log_likelihood(yt, xl, ut, t, p)
         if ll.shape[0] != k:
             raise ValueError(_RESHAPED_LOG_LIKELIHOOD)
+        for i in range(k):  # NaN or +inf: the model's trouble, counted (weight zero)
+            bad += not (ll[i] < _np.inf)
         las = la[s:e]  # the tile's rows as views from 0: no negative-index wraparound in the loops
         lws = lw[s:e]
         if first or asir:
@@ -293,6 +296,7 @@ def _pass_a(p, brng, y, u, work, settings, step):
             for i in range(k):
                 las[i] = lws[i] + _valid(_np.float64(ll[i]))
         m = _max(las, m)
+    work.bwork[_B_INVALID, step.b] = bad
     return m
 
 
@@ -392,6 +396,7 @@ def _run_group(p, rng, brngs, y, u, out, work, settings):
                                       _Step(t, g, _np.int64(b), fs, method == _ASIR and not fs, 0.0, 0.0))
                 m = -_np.inf
                 for b in range(nb):
+                    out.invalid[g, t] += work.bwork[_B_INVALID, b]  # the model's NaN or +inf log-likelihoods
                     if bmax[b] > m:
                         m = bmax[b]
                 deg = not (m > -_np.inf)

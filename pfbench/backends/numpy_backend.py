@@ -156,7 +156,7 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
     moments before resampling) or ``post`` (at a step that resamples, the resampled particles'
     moments; :func:`pfbench.run_filter`)."""
     x, est, var, ess, inc = out.x, out.est, out.var, out.ess, out.inc
-    resampled, degen, hist_x, hist_w = out.resampled, out.degen, out.hist_x, out.hist_w
+    resampled, degen, invalid, hist_x, hist_w = out.resampled, out.degen, out.invalid, out.hist_x, out.hist_w
     store = hist_x.shape[1] > 0
     fns = model.kernel_functions()
     initial, transition, log_likelihood = fns["initial"], fns["transition"], fns["log_likelihood"]
@@ -183,7 +183,9 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             first = 0.0
             if method == Method.ASIR:  # first stage
                 mu = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p), xs, at)
-                lam_all = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), ls, at))
+                raw = shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), ls, at)
+                invalid[g, t] += np.count_nonzero(~(raw < np.inf))  # NaN or +inf: the model's, weight zero
+                lam_all = valid_log_likelihood(raw)
                 wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
                 if deg1:
@@ -196,7 +198,9 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             noise = np.concatenate([r.standard_normal((sl.stop - sl.start, n_noise), dtype=ptype)
                                     for r, sl in zip(brngs, blocks)])
             xg[:] = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p), xs, at)
-            ll = valid_log_likelihood(shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut, t, p), ls, at))
+            raw = shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut, t, p), ls, at)
+            invalid[g, t] += np.count_nonzero(~(raw < np.inf))
+            ll = valid_log_likelihood(raw)
             if method == Method.ASIR:
                 ll = valid_log_likelihood(ll - lam)
             wu, cdf, m, total, deg = weigh(lw[g], ll, blocks)

@@ -17,8 +17,8 @@ from ..methods import Method
 #: pass B; the merge's positions after that); ASIR only: the first-stage log-likelihoods of the
 #: particles now in the buffer, and those of every particle before the first-stage resampling
 F_UNIFORMS, F_CDF, F_WEIGHTS, F_LAM, F_LAM_ALL = range(5)
-#: the rows of :attr:`Work.bwork`, per block: max log-weight, weight sum, sum of squared weights, cdf offset
-B_MAX, B_SUM, B_SUM_SQ, B_OFFSET = range(4)
+#: rows of :attr:`Work.bwork`, per block: max log-weight, weight sum, sum of squares, cdf offset, NaN/+inf count
+B_MAX, B_SUM, B_SUM_SQ, B_OFFSET, B_INVALID = range(5)
 #: particles per tile of the merge's count estimates
 #: (:func:`pfbench.backends.numba_resampling.merge_gather`); :attr:`Work.iwork` holds one tile per block
 ESTIMATE_TILE = 512
@@ -26,8 +26,9 @@ ESTIMATE_TILE = 512
 
 class Outputs(NamedTuple):
     """What a run of G filters fills: final particles ``x`` (G, N_p, n_x); ``est``, ``var`` (G, M, n_x);
-    ``ess``, ``inc``, ``resampled``, ``degen`` (G, M); ``hist_x`` (G, M, N_p, n_x), ``hist_w`` (G, M,
-    N_p): every step's weighted particles (second dimension 0: none)."""
+    ``ess``, ``inc``, ``resampled``, ``degen`` (G, M); ``invalid`` (G, M): the log-likelihoods the model
+    returned as NaN or +inf (weight zero); ``hist_x`` (G, M, N_p, n_x), ``hist_w`` (G, M, N_p): every
+    step's weighted particles (second dimension 0: none)."""
 
     x: np.ndarray
     est: np.ndarray
@@ -36,6 +37,7 @@ class Outputs(NamedTuple):
     inc: np.ndarray
     resampled: np.ndarray
     degen: np.ndarray
+    invalid: np.ndarray
     hist_x: np.ndarray
     hist_w: np.ndarray
 
@@ -52,7 +54,8 @@ def outputs(n_filters: int, n_steps: int, n_particles: int, n_x: int, dtype=np.f
     G, M, n, k = n_filters, n_steps, n_particles, n_steps if store else 0
     return Outputs(x=np.empty((G, n, n_x), dtype), est=np.empty((G, M, n_x)), var=np.empty((G, M, n_x)),
                    ess=np.empty((G, M)), inc=np.empty((G, M)), resampled=np.zeros((G, M), np.bool_),
-                   degen=np.zeros((G, M), np.bool_), hist_x=np.empty((G, k, n, n_x), dtype),
+                   degen=np.zeros((G, M), np.bool_), invalid=np.zeros((G, M), np.int64),
+                   hist_x=np.empty((G, k, n, n_x), dtype),
                    hist_w=np.empty((G, k, n)))
 
 
@@ -117,7 +120,7 @@ def work_arrays(x, n_blocks: int, bounds, method: int) -> Work:
     G, n, n_x = x.shape
     return Work(xs=np.empty((2, G, n, n_x), x.dtype), lw=np.empty((G, n) if keeps_weights else (G, 0)),
                 fwork=np.empty((F_LAM_ALL + 1 if asir else F_WEIGHTS + 1, n)),
-                iwork=np.empty(n + n_blocks * ESTIMATE_TILE, np.int64), bwork=np.empty((B_OFFSET + 1, n_blocks)),
+                iwork=np.empty(n + n_blocks * ESTIMATE_TILE, np.int64), bwork=np.empty((B_INVALID + 1, n_blocks)),
                 bmom=np.empty((2, n_blocks, n_x)), gstate=np.empty((2, G), np.int64),
                 bounds=np.ascontiguousarray(bounds, dtype=np.int64))
 

@@ -26,7 +26,9 @@ Numerical trouble
 -----------------
 Weights are handled in log space (log-sum-exp), so an outlier that makes every likelihood
 underflow in linear scale still gives finite, correctly normalised weights. NaN or +inf
-log-likelihoods count as zero likelihood. If *every* particle has zero likelihood at a step,
+log-likelihoods count as zero likelihood and are counted on the CPU backends (``info``:
+``invalid_log_likelihoods``, ``invalid_steps``, ``first_invalid_step``; ``pfbench run`` and sweeps
+warn of them): they are the model's trouble, often a state the model did not expect. If *every* particle has zero likelihood at a step,
 the step is flagged in ``degenerate``, the measurement is ignored (weights kept), the filter
 carries on, its ``ess`` is reported as 0, and ``loglik`` becomes -inf (the estimate of p(y)
 really is 0); estimates never become NaN. NaN/inf measurements are rejected up front with the first bad step named.
@@ -46,7 +48,7 @@ from ..procs import free_cores, numba_threads
 from ..resampling import Scheme
 from ..methods import ARRAY_BACKENDS, Estimate, Method, check_backend, check_dtype
 from .inputs import ess_count, seed_sequence
-from .result import FilterResult, mixture_loglik_increments, reported_ess, total_variance
+from .result import FilterResult, invalid_info, mixture_loglik_increments, reported_ess, total_variance
 
 
 def streams(seed, n_filters: int, common_random_numbers: bool) -> list[np.random.Generator]:
@@ -108,7 +110,8 @@ def run_particle(model, y, u, *, method: Method, n_particles: int, n_filters: in
     info = {"n_per_filter": n_per, "ess_threshold": thr if method == Method.SIR else None,
             "resampling": scheme.label, "estimate": estimate,
             "common_random_numbers": bool(common_random_numbers), "n_streams": n_streams,
-            "threads": out.get("threads", 1), **extra}
+            "threads": out.get("threads", 1), **extra,
+            **(invalid_info(out["invalid"].sum(axis=0)) if "invalid" in out else {})}
     if n_per * n_filters != n_particles:
         info["n_particles_requested"] = n_particles
         info["note"] = (f"N_p = {n_particles} does not split evenly into {n_filters} sub-filters: "
@@ -186,7 +189,7 @@ def run_groups(model, y, u, rngs, *, method, n_per: int, n_filters: int, resampl
             job(gi)
     elapsed = time.perf_counter() - t0
     return {"est": out.est, "var": out.var, "ess": out.ess, "inc": out.inc, "resampled": out.resampled,
-            "degen": out.degen, "particles": out.hist_x, "weights": out.hist_w,
+            "degen": out.degen, "invalid": out.invalid, "particles": out.hist_x, "weights": out.hist_w,
             "threads": workers if pooled else inner}, elapsed
 
 

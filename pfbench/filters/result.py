@@ -14,6 +14,28 @@ NON_FINITE_WHY = ("every particle's likelihood was zero, NaN or infinite (check 
                   "transition, or the measurement at that step)")
 
 
+def invalid_info(per_step) -> dict:
+    """``info`` entries for the log-likelihoods the model returned as NaN or +inf, each a particle
+    given weight zero (``per_step``: their number at each step): the count, the steps with any and
+    the first of them; none when there were none. The particle filters count them on the CPU
+    backends."""
+    per_step = np.asarray(per_step)
+    steps = np.flatnonzero(per_step)
+    if steps.size == 0:
+        return {}
+    return {"invalid_log_likelihoods": int(per_step.sum()), "invalid_steps": int(steps.size),
+            "first_invalid_step": int(steps[0])}
+
+
+def invalid_message(info: dict) -> str | None:
+    """What ``pfbench run`` and sweeps say of :func:`invalid_info`'s entries; None without them."""
+    if not info.get("invalid_log_likelihoods"):
+        return None
+    return (f"log_likelihood returned NaN or +inf for {info['invalid_log_likelihoods']} particle(s) at "
+            f"{info['invalid_steps']} step(s), first at step {info['first_invalid_step']}: those particles got "
+            "weight zero (check the model's log_likelihood and transition at those states)")
+
+
 def reported_ess(ess: np.ndarray, degenerate: np.ndarray) -> np.ndarray:
     """N_eff as a result reports it: 0 where the step was degenerate. The filter kept the previous
     weights there (N_eff of those, often N_p, decides its resampling), but no particle explained the

@@ -101,8 +101,8 @@ def _with_options(f):
 
 
 #: keys a grid file may hold (the options above, plus ``params`` as a mapping)
-GRID_KEYS = ("model", "param", "params", "particles", "filters", "method", "runs", "steps",
-             "backend", "resampling", "estimate", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
+GRID_KEYS = ("model", "param", "params", "particles", "filters", "method", "runs", "steps", "backend",
+             "resampling", "estimate", "seed", "out", "workers", "executor", "scheduler", "overwrite", "quiet")
 
 
 def _do_run(kw: dict) -> None:
@@ -155,13 +155,17 @@ def _do_run(kw: dict) -> None:
 
         click.echo(f"warning: {rep.non_finite_loglik} of {rep.done_before + rep.done_now} tasks have a log-likelihood "
                    f"of -inf or NaN: at some step {NON_FINITE_WHY}; their aRMSE is kept", err=True)
+    if rep.invalid_loglik:
+        click.echo(f"warning: in {rep.invalid_loglik} of {rep.done_before + rep.done_now} tasks the model's "
+                   "log_likelihood returned NaN or +inf for some particles, which got weight zero (the store's "
+                   "invalid_loglik column counts them; check the model's log_likelihood and transition)", err=True)
     if as_json:
         from ..io import to_json
 
         click.echo(to_json({"store": str(rep.store), "total": rep.total, "done": rep.done_before + rep.done_now,
                             "done_now": rep.done_now, "wall_s": rep.wall_s,
                             "tasks_per_s": rep.tasks_per_s if rep.done_now else None,
-                            "non_finite_loglik": rep.non_finite_loglik}))
+                            "non_finite_loglik": rep.non_finite_loglik, "invalid_loglik": rep.invalid_loglik}))
         return
     click.echo(f"{rep.done_before + rep.done_now}/{rep.total} tasks in {rep.store} "
                f"({rep.done_now} new in {rep.wall_s:.1f} s, {rep.tasks_per_s:.1f} tasks/s)")

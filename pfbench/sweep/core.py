@@ -200,8 +200,9 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
                         want_loglik: bool = False):
     """Estimates of a particle-family method (bootstrap, sir, sis, asir, multipdf), equal to
     ``pfbench.run_filter(..., method=method, estimate=estimate)`` (same streams, kernels and
-    default ESS threshold) but without its per-call thread pool. Returns (est, sub_est), and the
-    log-likelihood estimate as a third item with ``want_loglik``."""
+    default ESS threshold) but without its per-call thread pool. Returns (est, sub_est), and with
+    ``want_loglik`` the log-likelihood estimate and the log-likelihoods the model returned as NaN
+    or +inf (None where the backend does not count them) as third and fourth items."""
     from ..filters.inputs import ess_count
     from ..filters.particle import run_groups, split_particles, streams
     from ..methods import ARRAY_BACKENDS
@@ -228,7 +229,8 @@ def run_particle_family(model, y, u, method: str, n_particles: int, n_filters: i
     if want_loglik:
         from ..filters.result import mixture_loglik_increments
 
-        return est.mean(axis=0), est, float(mixture_loglik_increments(out["inc"]).sum())
+        invalid = int(out["invalid"].sum()) if "invalid" in out else None
+        return est.mean(axis=0), est, float(mixture_loglik_increments(out["inc"]).sum()), invalid
     return est.mean(axis=0), est
 
 
@@ -267,18 +269,18 @@ def run_chunk(spec: dict, run: int, config_indices) -> list[dict]:
         seed = filter_seed(spec, cfg, run)
         t0 = time.perf_counter()
         if Method.parse(m).family == "particle":
-            est, _, ll = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
-                                             spec["resampling"], estimate_for(spec, m), want_loglik=True)
+            est, _, ll, invalid = run_particle_family(model, y, u, m, n_p, n_f, seed, spec["backend"],
+                                                      spec["resampling"], estimate_for(spec, m), want_loglik=True)
         else:
             res = run_filter(model, y, u, method=m, n_particles=n_p, backend=spec["backend"],
                              seed=seed, resampling=spec["resampling"])
-            est, ll = res.estimates, float(res.loglik)
+            est, ll, invalid = res.estimates, float(res.loglik), res.info.get("invalid_log_likelihoods")
         dt = time.perf_counter() - t0
         r = rmse(est, traj.x)
         out.append({"key": task_key(ci, run), "config": int(ci), "run": int(run), "method": m,
                     "n_particles": int(n_p), "n_filters": int(n_f),
                     "armse": float(np.mean(r)), "rmse": [float(v) for v in r],
-                    "elapsed_s": dt, "loglik": ll, "seed": int(spec["seed"]),
+                    "elapsed_s": dt, "loglik": ll, "invalid_loglik": invalid, "seed": int(spec["seed"]),
                     "seed_key": ".".join(str(k) for k in seed.spawn_key)})
     return out
 

@@ -69,6 +69,9 @@ class SweepReport:
     #: finished tasks whose log-likelihood is -inf or NaN (every particle's likelihood was zero,
     #: NaN or infinite at some step): the model's trouble, said as ``pfbench run`` says it
     non_finite_loglik: int = 0
+    #: finished tasks in which the model returned NaN or +inf log-likelihoods for some particles
+    #: (weight zero; the record's ``invalid_loglik`` counts them)
+    invalid_loglik: int = 0
 
     @property
     def tasks_per_s(self) -> float:
@@ -363,7 +366,8 @@ def _run_locked(spec, out, workers, executor, scheduler, progress, overwrite, ma
             raise path_error(exc, out, "--out") from None
     bad = sum(1 for r in store.records.values()   # read back from a journal, -inf is null and a note
               if "loglik_nonfinite" in r or not math.isfinite(r.get("loglik") or 0.0))
-    return SweepReport(Path(out), total, before, len(store.records) - before, wall, bad)
+    invalid = sum(1 for r in store.records.values() if (r.get("invalid_loglik") or 0) > 0)
+    return SweepReport(Path(out), total, before, len(store.records) - before, wall, bad, invalid)
 
 
 _WARM: set = set()

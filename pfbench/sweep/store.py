@@ -209,7 +209,7 @@ class Store:
             row = {"model": label, **{k: r[k] for k in cols[:5]}}
             row["estimate"] = estimate_for(self.spec, r["method"])
             row.update({k: r[k] for k in cols[5:]})
-            for k in ("loglik", "seed", "seed_key"):  # older stores lack them
+            for k in ("loglik", "invalid_loglik", "seed", "seed_key"):  # older stores lack them
                 row[k] = r.get(k)
             for j, v in enumerate(r["rmse"]):
                 row[f"rmse_{j + 1}"] = v

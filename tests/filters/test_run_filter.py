@@ -207,6 +207,29 @@ def test_a_degenerate_step_reports_no_effective_particles(name, method, kw):
     assert r.ess[10] == 0 and np.all(np.delete(r.ess, 10) > 0)
 
 
+def test_nan_log_likelihoods_are_counted_alike_on_both_backends(log_of_state_file):
+    """The log-likelihoods a model returns as NaN (here: log of a negative state) are counted per
+    step, by each stream block and summed (N_p = 600 in blocks of at most 128), the same on both
+    backends and for ASIR's two stages and MultiPDF's sub-filters; the bootstrap count is exactly
+    the stored particles below 0. Catches an uncounted backend, stage, block or sub-filter."""
+    (name,) = models.load_files([log_of_state_file("counted_log_of_state")])
+    model = models.get(name)
+    y = model.simulate(15, seed=2).y
+    got = {}
+    for kw in (dict(method="bootstrap"), dict(method="asir"), dict(method="multipdf", n_filters=2)):
+        for backend in ("numpy", "numba"):
+            r = pfbench.run_filter(model, y, n_particles=600, backend=backend, seed=4, n_threads=1, _block=128,
+                                   store_particles=kw["method"] == "bootstrap", **kw)
+            got[kw["method"], backend] = {k: v for k, v in r.info.items() if "invalid" in k}
+            if kw["method"] == "bootstrap":
+                below = (r.extras["particles"][..., 0] < 0).sum(axis=(0, 2))   # per step
+                assert r.info["invalid_log_likelihoods"] == below.sum() > 0
+                assert r.info["first_invalid_step"] == np.flatnonzero(below)[0]
+        assert got[kw["method"], "numpy"] == got[kw["method"], "numba"] != {}, got
+    r = pfbench.run_filter(models.get("ob1"), models.get("ob1").simulate(15, seed=2).y, n_particles=100)
+    assert not any("invalid" in k for k in r.info)
+
+
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
 def test_nan_measurement_names_the_step(bad):
     model = models.get("ob1")

@@ -313,6 +313,30 @@ def test_sweep_takes_a_resampling_scheme(tmp_path):
     assert armse["systematic"] != armse["multinomial"]
 
 
+def test_a_sweep_says_where_the_model_returned_nan_log_likelihoods(tmp_path, log_of_state_file):
+    """The tasks whose model returned NaN log-likelihoods for some particles (log of a negative
+    state) are counted in the store (invalid_loglik) and said after the sweep; a model without
+    them stores 0. Catches the count lost between the kernel and the sweep's record."""
+    from pfbench.cli import main
+
+    f = log_of_state_file("sweep_log_of_state")
+    out = tmp_path / "s.jsonl"
+    with np.errstate(all="ignore"):
+        r = CliRunner().invoke(main, ["--models", str(f), "sweep", "--model", "sweep_log_of_state", "--method",
+                                      "bootstrap,multipdf", "--filters", "2", "--particles", "100", "--runs", "2",
+                                      "--steps", "15", "--workers", "1", "--quiet", "--backend", "numpy",
+                                      "--out", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["invalid_loglik"] == 4
+    assert "warning: in 4 of 4 tasks the model's log_likelihood returned NaN or +inf" in r.stderr
+    assert (Store.read(out).frame()["invalid_loglik"] > 0).all()
+    out = tmp_path / "ob1.jsonl"
+    r = CliRunner().invoke(main, ["sweep", "--model", "ob1", "--method", "bootstrap", "--particles", "50",
+                                  "--runs", "2", "--steps", "10", "--workers", "1", "--quiet", "--backend", "numpy",
+                                  "--out", str(out)])
+    assert r.exit_code == 0 and "warning" not in r.output and (Store.read(out).frame()["invalid_loglik"] == 0).all()
+
+
 def test_seed_keys_of_existing_methods_never_change():
     # Stored sweeps of multipdf / bootstrap / mpf keep their numbers only if these stay put.
     assert {m: SEED_KEY[m] for m in ("multipdf", "bootstrap", "mpf")} == {"multipdf": 0, "bootstrap": 1,
