@@ -344,9 +344,10 @@ def run(model_name, method, particles, filters, steps, resampling, ess_threshold
         click.echo(f"warning: {why}", err=True)
     from .filters.result import invalid_message
 
+    if "invalid_log_likelihoods" in res.info:
+        out["invalid_log_likelihoods"] = res.info["invalid_log_likelihoods"]
     invalid = invalid_message(res.info)
     if invalid:
-        out["invalid_log_likelihoods"] = res.info["invalid_log_likelihoods"]
         if strict:
             raise PfbenchError(invalid)
         click.echo(f"warning: {invalid}", err=True)

@@ -112,11 +112,12 @@ def model_digest(cls: type) -> str:
 
 
 def _bytecode(code: types.CodeType, h) -> None:
-    """Hash a code object's instructions and constants, nested functions included (a code object's
-    repr holds its address, different in every process)."""
-    h.update(code.co_code)
+    """Hash a code object's instructions, the names it reads and its constants, nested functions
+    included, the same in every process (a code object's repr holds its address, a frozenset's
+    order follows the string hash seed)."""
+    h.update(code.co_code + " ".join(code.co_names).encode())
     for c in code.co_consts:
         if isinstance(c, types.CodeType):
             _bytecode(c, h)
         else:
-            h.update(repr(c).encode())
+            h.update(repr(sorted(c, key=repr) if isinstance(c, frozenset) else c).encode())

@@ -81,15 +81,27 @@ def _tbb_loads() -> bool:
                  marks=pytest.mark.skipif(_tbb_loads(), reason="TBB is installed here")),
     ({"NUMBA_DISABLE_JIT": "1"}, "NUMBA_DISABLE_JIT is set: the numba backend needs numba's compiler")])
 def test_numba_settings_in_the_environment_are_checked_first(env, needle):
-    """In a real process, where numba reads them at its import: 0 was numba's own traceback at import
-    (reported as a pfbench bug), an unknown layer failed only when threads started, blamed on the
-    model; a known layer that cannot load here (TBB not installed) and the JIT switched off (a
-    model-debugging habit) were tracebacks from inside a compile. Catches each check dropped or
-    run after numba's import or compile."""
+    """In a real process, where numba reads them at its import, each setting numba cannot work with
+    is one line naming it: NUMBA_NUM_THREADS=0 (numba's import fails), an unknown layer or one
+    that cannot load here (TBB not installed: threads fail to start, in a compile too), the JIT
+    switched off (nothing compiles). Catches each check dropped or run after numba reads it."""
     r = subprocess.run([sys.executable, "-m", "pfbench.cli", "run", "--model", "ob1", "--particles", "20000",
                         "--steps", "3", "--threads", "2"], capture_output=True, text=True, timeout=300,
                        env=dict(os.environ, **env))
     assert r.returncode == 2 and needle in _one_error_line(r.stderr), r.stderr
+
+
+def test_the_jit_switched_off_in_code_is_one_error_naming_it(monkeypatch):
+    """numba.config.DISABLE_JIT set by a notebook, not the environment: the numba backend refuses in
+    one line. Catches a check of the environment variable only (an AttributeError from the build)."""
+    import numba
+
+    import pfbench
+    from pfbench import models
+
+    monkeypatch.setattr(numba.config, "DISABLE_JIT", True)
+    with pytest.raises(InputError, match="NUMBA_DISABLE_JIT is set"):
+        pfbench.run_filter(models.get("ob1"), np.zeros((5, 1)), n_particles=50, backend="numba")
 
 
 def test_user_error_one_line_in_a_real_process():
@@ -211,7 +223,7 @@ def test_run_warns_of_the_models_nan_log_likelihoods_and_strict_refuses(log_of_s
         r = _invoke(*args, "--json")
         assert r.exit_code == 0, r.output
         assert json.loads(r.stdout)["invalid_log_likelihoods"] > 0
-        assert re.search(r"^warning: log_likelihood returned NaN or \+inf for \d+ particle\(s\) at \d+ step\(s\), "
+        assert re.search(r"^warning: log_likelihood returned NaN or \+inf \d+ time\(s\) at \d+ step\(s\), "
                          r"first at step \d+: those particles got weight zero", r.stderr, re.M), r.stderr
         r = _invoke(*args, "--strict")
     assert r.exit_code == 2 and "log_likelihood returned NaN or +inf" in _one_error_line(r.stderr)

@@ -104,3 +104,23 @@ def test_numba_cache_is_not_stale_after_an_imported_file_changes(tmp_path):
     _files(tmp_path, gain=0.9, offset=3.0)
     constant_edited = _run(model, warm)
     assert before != helper_edited != constant_edited and constant_edited == _run(model, fresh)
+
+
+def test_a_model_without_a_source_file_is_keyed_on_its_code_the_same_in_every_process():
+    """A model class from exec'd code (no file to hash): its key follows the names its code reads
+    (np.sin against np.cos) and is the same in processes with other string hash seeds (a frozenset
+    constant). Catches a key of the instructions alone, or of a frozenset's seed-dependent order."""
+    code = textwrap.dedent('''
+        import numpy as np
+        from pfbench.models import StateSpaceModel
+        from pfbench.sources import model_digest
+        class Exec(StateSpaceModel):
+            @staticmethod
+            def transition(x, u, t, noise, p):
+                return np.sin(x) if t in {"a", "b", "c", "d"} else x
+        print(model_digest(Exec))
+    ''')
+    keys = [subprocess.run([sys.executable, "-c", f"exec({src!r})"], capture_output=True, text=True, check=True,
+                           env=dict(os.environ, PYTHONHASHSEED=str(seed))).stdout
+            for src, seed in ((code, 1), (code, 2), (code.replace("np.sin", "np.cos"), 1))]
+    assert keys[0] == keys[1] != keys[2]

@@ -114,7 +114,7 @@ def build(family: str, model, scheme=None, *, f_tiles: bool | None = None) -> ty
     with _LOCK:
         if key in _MODULES:
             return _MODULES[key]
-        if os.environ.get("NUMBA_DISABLE_JIT", "0").strip() not in ("", "0"):  # numba would run nothing compiled
+        if importlib.import_module("numba").config.DISABLE_JIT:  # numba would compile nothing
             raise InputError("NUMBA_DISABLE_JIT is set: the numba backend needs numba's compiler; unset it, or "
                              "step through the model's plain Python on --backend numpy")
         if disk_cacheable(cls):  # an unusable cache directory is one line naming it, before any compile

@@ -33,7 +33,7 @@ import numpy as np
 from .. import resampling
 from .fastexp import exp_array as exp_weights
 from ..methods import Estimate, Method
-from ..models.contract import shaped
+from ..models.contract import invalid_log_likelihoods, shaped
 
 
 def valid_log_likelihood(ll) -> np.ndarray:
@@ -184,7 +184,7 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
             if method == Method.ASIR:  # first stage
                 mu = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, np.zeros((n, n_noise)), p), xs, at)
                 raw = shaped(model, "log_likelihood", log_likelihood(yt, mu, ut, t, p), ls, at)
-                invalid[g, t] += np.count_nonzero(~(raw < np.inf))  # NaN or +inf: the model's, weight zero
+                invalid[g, t] += invalid_log_likelihoods(raw)
                 lam_all = valid_log_likelihood(raw)
                 wu, cdf, m1, tot1, deg1 = weigh(lw[g], lam_all, blocks)
                 first = m1 + np.log(tot1)
@@ -199,7 +199,7 @@ def run_group(model, p, rng, y, u, out, method: int, scheme: int, ess_threshold:
                                     for r, sl in zip(brngs, blocks)])
             xg[:] = shaped(model, "transition", transition(xg.astype(np.float64), ut, t, noise.astype(np.float64), p), xs, at)
             raw = shaped(model, "log_likelihood", log_likelihood(yt, xg.astype(np.float64), ut, t, p), ls, at)
-            invalid[g, t] += np.count_nonzero(~(raw < np.inf))
+            invalid[g, t] += invalid_log_likelihoods(raw)
             ll = valid_log_likelihood(raw)
             if method == Method.ASIR:
                 ll = valid_log_likelihood(ll - lam)

@@ -72,7 +72,7 @@ class Work(NamedTuple):
     fwork: np.ndarray
     #: (N_p + B * ESTIMATE_TILE,) int64: ancestor indices, then one estimate tile of merge marks per block
     iwork: np.ndarray
-    #: (4, B) per block, rows ``B_*``
+    #: (5, B) per block, rows ``B_*``
     bwork: np.ndarray
     #: (2, B, n_x) per block: sums of w x and of w (x - x_0)^2
     bmom: np.ndarray

@@ -390,7 +390,7 @@ def _check_shapes(model, u, idx_n, idx_l, m0, method: str) -> None:
     x = None
     if d_n or "initial" in have:  # the Kalman family draws no x^n: initial may refuse (None)
         x = call(model, "initial", _NEEDED if d_n else {}, np.random.default_rng(0), n, p)
-        x = None if x is None else shaped(model, "initial", x, (n, int(model.n_x))).astype(np.float64)
+        x = None if x is None and not d_n else shaped(model, "initial", x, (n, int(model.n_x))).astype(np.float64)
     xn = np.ascontiguousarray(x[:, idx_n]) if d_n else np.zeros((n, 0))
     check("cl_transition", call(model, "cl_transition", _NEEDED, xn, u[0], 0, p))
     check("cl_constrain", call(model, "cl_constrain", _NEEDED, xn.copy(), p))
@@ -398,7 +398,7 @@ def _check_shapes(model, u, idx_n, idx_l, m0, method: str) -> None:
     if x is None or "transition" not in have:
         return
     noise = np.random.default_rng(1).standard_normal((n, int(model.n_noise)))
-    moved = call(model, "transition", {}, x, u[0], 0, noise, p)
+    moved = call(model, "transition", {}, x.copy(), u[0], 0, noise, p)  # copies: a model may write its input
     for at in (x,) if moved is None else (x, shaped(model, "transition", moved, x.shape).astype(np.float64)):
         check_agreement(model, at, u[0], p, idx_n, idx_l, method, observe="observe" in have)
 
@@ -437,7 +437,7 @@ def check_agreement(model, x, u0, p, idx_n, idx_l, method: str, observe: bool = 
                              f"{mine[i, j]:.12g} by {fn}, {theirs[i, j]:.12g} by {cl_fn} ({how(j)}); method "
                              f"{method!r} would filter another model")
 
-    mine = call(model, "transition", {}, x, u0, 0, np.zeros((n, int(model.n_noise))), p)
+    mine = call(model, "transition", {}, x.copy(), u0, 0, np.zeros((n, int(model.n_noise))), p)
     tr = mine is not None and floats("cl_transition", ("f^n", "A^n", "f^l", "A^l"),
                                      ((n, d_n), (n, d_n, d_l), (n, d_l), (n, d_l, d_l)), xn, u0, 0, p)
     xc = tr and floats("cl_constrain", None, ((n, d_n),), tr[0] + times(tr[1], xl), p)
@@ -451,7 +451,7 @@ def check_agreement(model, x, u0, p, idx_n, idx_l, method: str, observe: bool = 
                 lambda j: f"state {j} ({part[j]})",
                 lambda j: "f^l + A^l x^l" if j in idx_l else "cl_constrain(f^n + A^n x^l)")
     n_y = int(model.n_y)
-    mine = call(model, "observe", {}, x, u0, 0, np.zeros((n, int(model.obs_noise_dim))), p) if observe else None
+    mine = call(model, "observe", {}, x.copy(), u0, 0, np.zeros((n, int(model.obs_noise_dim))), p) if observe else None
     ob = mine is not None and floats("cl_observation", ("h", "C"), ((n, n_y), (n, n_y, d_l)), xn, xl, u0, 0, p)
     if ob:
         compare("observe", shaped(model, "observe", mine, (n, n_y)), "cl_observation", ob[0],

@@ -26,12 +26,13 @@ Numerical trouble
 -----------------
 Weights are handled in log space (log-sum-exp), so an outlier that makes every likelihood
 underflow in linear scale still gives finite, correctly normalised weights. NaN or +inf
-log-likelihoods count as zero likelihood and are counted on the CPU backends (``info``:
-``invalid_log_likelihoods``, ``invalid_steps``, ``first_invalid_step``; ``pfbench run`` and sweeps
-warn of them): they are the model's trouble, often a state the model did not expect. If *every* particle has zero likelihood at a step,
-the step is flagged in ``degenerate``, the measurement is ignored (weights kept), the filter
-carries on, its ``ess`` is reported as 0, and ``loglik`` becomes -inf (the estimate of p(y)
-really is 0); estimates never become NaN. NaN/inf measurements are rejected up front with the first bad step named.
+log-likelihoods count as zero likelihood and are counted on the numpy and numba backends
+(``info``: ``invalid_log_likelihoods``, ``invalid_steps``, ``first_invalid_step``; ``pfbench run``
+and sweeps warn of them): they are the model's trouble, often a state the model did not expect.
+If *every* particle has zero likelihood at a step, the step is flagged in ``degenerate``, the
+measurement is ignored (weights kept), the filter carries on, its ``ess`` is reported as 0, and
+``loglik`` becomes -inf (the estimate of p(y) really is 0); estimates never become NaN. NaN/inf
+measurements are rejected up front with the first bad step named.
 """
 from __future__ import annotations
 

@@ -14,33 +14,38 @@ NON_FINITE_WHY = ("every particle's likelihood was zero, NaN or infinite (check 
                   "transition, or the measurement at that step)")
 
 
+#: what to do about log-likelihoods a model returned as NaN or +inf; ``pfbench run`` and sweeps say it
+INVALID_WHY = "check the model's log_likelihood and transition at those states"
+
+
 def invalid_info(per_step) -> dict:
     """``info`` entries for the log-likelihoods the model returned as NaN or +inf, each a particle
-    given weight zero (``per_step``: their number at each step): the count, the steps with any and
-    the first of them; none when there were none. The particle filters count them on the CPU
-    backends."""
+    given weight zero (``per_step``: their number at each step): the count, and where there are any
+    the steps with one and the first of them. Counted by bootstrap, SIR, SIS, ASIR and MultiPDF on
+    the numpy and numba backends (ASIR: both stages); the other methods and backends have no entry."""
     per_step = np.asarray(per_step)
     steps = np.flatnonzero(per_step)
     if steps.size == 0:
-        return {}
+        return {"invalid_log_likelihoods": 0}
     return {"invalid_log_likelihoods": int(per_step.sum()), "invalid_steps": int(steps.size),
             "first_invalid_step": int(steps[0])}
 
 
 def invalid_message(info: dict) -> str | None:
-    """What ``pfbench run`` and sweeps say of :func:`invalid_info`'s entries; None without them."""
+    """What ``pfbench run`` says of :func:`invalid_info`'s entries; None when there are none."""
     if not info.get("invalid_log_likelihoods"):
         return None
-    return (f"log_likelihood returned NaN or +inf for {info['invalid_log_likelihoods']} particle(s) at "
+    return (f"log_likelihood returned NaN or +inf {info['invalid_log_likelihoods']} time(s) at "
             f"{info['invalid_steps']} step(s), first at step {info['first_invalid_step']}: those particles got "
-            "weight zero (check the model's log_likelihood and transition at those states)")
+            f"weight zero ({INVALID_WHY})")
 
 
 def reported_ess(ess: np.ndarray, degenerate: np.ndarray) -> np.ndarray:
-    """N_eff as a result reports it: 0 where the step was degenerate. The filter kept the previous
-    weights there (N_eff of those, often N_p, decides its resampling), but no particle explained the
-    measurement, and a full N_eff would hide the step where it lost track."""
-    return np.where(degenerate, 0.0, ess)
+    """N_eff as a result reports it: 0 where the step was degenerate (NaN, a filter without
+    particles, stays NaN). The filter kept the previous weights there (N_eff of those, often N_p,
+    decides its resampling), but no particle explained the measurement, and a full N_eff would
+    hide the step where it lost track."""
+    return np.where(degenerate & ~np.isnan(ess), 0.0, ess)
 
 
 @dataclass

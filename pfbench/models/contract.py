@@ -129,6 +129,13 @@ def _check_params(model, p, path: str = "") -> None:
             raise ModelError(f"{where} is the integer {v}, beyond 64 bits: numba cannot hold it (make it a float)")
 
 
+def invalid_log_likelihoods(ll) -> int:
+    """How many of the model's log-likelihoods ``ll`` are NaN or +inf (each a particle given weight
+    zero: the model's trouble). Counted with NumPy here, outside :mod:`pfbench.mcu.counting`'s count of
+    the NumPy backend's operations: the firmware it costs does no such count."""
+    return int(np.count_nonzero(~(np.asarray(ll) < np.inf)))
+
+
 def linear_indices(model) -> np.ndarray:
     """The model's ``linear_states`` as distinct int64 indices of x^l in 0..n_x-1, at least one;
     else a ModelError."""

@@ -56,7 +56,9 @@ def _text(path: Path) -> str:
 
 def read_log(path, required=("time_s", "y", "u1", "u2"), max_rows: int | None = None) -> dict[str, np.ndarray]:
     """Read and validate a log; returns {column: float64 array} for every column in the header,
-    of its first ``max_rows`` data rows (None: all; the rows after them are neither parsed nor checked).
+    of its first ``max_rows`` data rows (None: all). The rows after them are not parsed into
+    numbers nor checked (the file is still decoded as UTF-8 as a whole); gaps in time are judged
+    against the median step of the rows read.
 
     Raises DataError (one line, naming the line) for a missing file or column, text that is not
     UTF-8, an empty log, a short row, a non-numeric or non-finite value, non-increasing time or a

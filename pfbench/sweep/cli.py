@@ -155,17 +155,20 @@ def _do_run(kw: dict) -> None:
 
         click.echo(f"warning: {rep.non_finite_loglik} of {rep.done_before + rep.done_now} tasks have a log-likelihood "
                    f"of -inf or NaN: at some step {NON_FINITE_WHY}; their aRMSE is kept", err=True)
-    if rep.invalid_loglik:
-        click.echo(f"warning: in {rep.invalid_loglik} of {rep.done_before + rep.done_now} tasks the model's "
-                   "log_likelihood returned NaN or +inf for some particles, which got weight zero (the store's "
-                   "invalid_loglik column counts them; check the model's log_likelihood and transition)", err=True)
+    if rep.tasks_with_invalid_loglik:
+        from ..filters.result import INVALID_WHY
+
+        click.echo(f"warning: in {rep.tasks_with_invalid_loglik} of {rep.done_before + rep.done_now} tasks the "
+                   "model's log_likelihood returned NaN or +inf for some particles, which got weight zero (the "
+                   f"store's invalid_loglik column counts them; {INVALID_WHY})", err=True)
     if as_json:
         from ..io import to_json
 
         click.echo(to_json({"store": str(rep.store), "total": rep.total, "done": rep.done_before + rep.done_now,
                             "done_now": rep.done_now, "wall_s": rep.wall_s,
                             "tasks_per_s": rep.tasks_per_s if rep.done_now else None,
-                            "non_finite_loglik": rep.non_finite_loglik, "invalid_loglik": rep.invalid_loglik}))
+                            "non_finite_loglik": rep.non_finite_loglik,
+                            "tasks_with_invalid_loglik": rep.tasks_with_invalid_loglik}))
         return
     click.echo(f"{rep.done_before + rep.done_now}/{rep.total} tasks in {rep.store} "
                f"({rep.done_now} new in {rep.wall_s:.1f} s, {rep.tasks_per_s:.1f} tasks/s)")

@@ -71,7 +71,7 @@ class SweepReport:
     non_finite_loglik: int = 0
     #: finished tasks in which the model returned NaN or +inf log-likelihoods for some particles
     #: (weight zero; the record's ``invalid_loglik`` counts them)
-    invalid_loglik: int = 0
+    tasks_with_invalid_loglik: int = 0
 
     @property
     def tasks_per_s(self) -> float:

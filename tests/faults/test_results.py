@@ -18,7 +18,7 @@ from pfbench import recipes, report
 from pfbench.cli import main
 
 HERE = Path(__file__).parent
-RECIPE = ["reproduce", "thesis:fig2.2", "--backend", "numpy", "--quiet", "--option", "runs=10"]  # 10 runs: a second less
+RECIPE = ["reproduce", "thesis:fig2.2", "--backend", "numpy", "--quiet", "--option", "runs=10"]  # files, not statistics
 FILES = ("fig2.2.csv", "fig2.2.png")
 
 

@@ -194,9 +194,9 @@ def test_all_zero_likelihood_step_is_flagged_and_filter_recovers():
                                             ("ob1", "multipdf", {"n_filters": 2}), ("ob5", "mpf", {}),
                                             ("pmsm_reduced", "guided", {})])
 def test_a_degenerate_step_reports_no_effective_particles(name, method, kw):
-    """The step where every likelihood was zero reports N_eff = 0 (the kept weights' N_eff, N_p for a
-    bootstrap filter, hid it), the others a positive N_eff. Catches a filter family whose result
-    reports the kept weights' N_eff."""
+    """The step where every likelihood was zero reports N_eff = 0, the others a positive N_eff; a
+    Kalman filter's N_eff stays NaN (no particles). Catches a filter family whose result reports the
+    kept weights' N_eff (N_p for a bootstrap filter), or a Kalman filter reporting 0."""
     model = models.get(name)
     traj = model.simulate(30, seed=1)
     y = traj.y.copy()
@@ -205,29 +205,39 @@ def test_a_degenerate_step_reports_no_effective_particles(name, method, kw):
         r = pfbench.run_filter(model, y, traj.u, method=method, n_particles=200, backend="numpy", seed=1, **kw)
     assert r.degenerate.nonzero()[0].tolist() == [10]
     assert r.ess[10] == 0 and np.all(np.delete(r.ess, 10) > 0)
+    if name == "ob5":
+        model = models.get("linear_gaussian")
+        y = model.simulate(30, seed=1).y
+        y[10] = 1e200
+        with np.errstate(all="ignore"):
+            r = pfbench.run_filter(model, y, method="kalman", backend="numpy")
+        assert r.degenerate.any() and np.isnan(r.ess).all()
 
 
 def test_nan_log_likelihoods_are_counted_alike_on_both_backends(log_of_state_file):
     """The log-likelihoods a model returns as NaN (here: log of a negative state) are counted per
     step, by each stream block and summed (N_p = 600 in blocks of at most 128), the same on both
-    backends and for ASIR's two stages and MultiPDF's sub-filters; the bootstrap count is exactly
-    the stored particles below 0. Catches an uncounted backend, stage, block or sub-filter."""
+    backends; every method's count is exactly its stored particles below 0 (over MultiPDF's
+    sub-filters, also pooled on two threads), ASIR's (two stages) the same on both backends; a model
+    without them counts 0. Catches an uncounted backend, stage, block or sub-filter."""
     (name,) = models.load_files([log_of_state_file("counted_log_of_state")])
     model = models.get(name)
     y = model.simulate(15, seed=2).y
     got = {}
-    for kw in (dict(method="bootstrap"), dict(method="asir"), dict(method="multipdf", n_filters=2)):
+    for kw in (dict(method="bootstrap"), dict(method="sis"), dict(method="asir"),
+               dict(method="multipdf", n_filters=2), dict(method="multipdf", n_filters=2, n_threads=2)):
+        kw = {"n_threads": 1, **kw}
         for backend in ("numpy", "numba"):
-            r = pfbench.run_filter(model, y, n_particles=600, backend=backend, seed=4, n_threads=1, _block=128,
-                                   store_particles=kw["method"] == "bootstrap", **kw)
-            got[kw["method"], backend] = {k: v for k, v in r.info.items() if "invalid" in k}
-            if kw["method"] == "bootstrap":
-                below = (r.extras["particles"][..., 0] < 0).sum(axis=(0, 2))   # per step
-                assert r.info["invalid_log_likelihoods"] == below.sum() > 0
+            r = pfbench.run_filter(model, y, n_particles=600, backend=backend, seed=4, _block=128,
+                                   store_particles=True, **kw)
+            got[tuple(kw.values()), backend] = {k: v for k, v in r.info.items() if "invalid" in k}
+            if kw["method"] != "asir":  # ASIR also weighs its first stage at states it does not store
+                below = (r.extras["particles"][..., 0] < 0).sum(axis=(0, 2))   # per step, all sub-filters
+                assert r.info["invalid_log_likelihoods"] == below.sum() > 0, kw
                 assert r.info["first_invalid_step"] == np.flatnonzero(below)[0]
-        assert got[kw["method"], "numpy"] == got[kw["method"], "numba"] != {}, got
+        assert got[tuple(kw.values()), "numpy"] == got[tuple(kw.values()), "numba"], got
     r = pfbench.run_filter(models.get("ob1"), models.get("ob1").simulate(15, seed=2).y, n_particles=100)
-    assert not any("invalid" in k for k in r.info)
+    assert r.info["invalid_log_likelihoods"] == 0 and "first_invalid_step" not in r.info
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf])

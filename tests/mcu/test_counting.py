@@ -65,6 +65,16 @@ def test_one_extra_cos_per_particle_costs_exactly_one_cos():
     assert d == {"cos": m * n}
 
 
+def test_ob1_counts_are_pinned():
+    """The NumPy engine's operations on Ob1 (bootstrap, 2 steps, 10 particles), pinned: they feed
+    every MCU prediction (the cost model's efficiency is fitted on Ob1), so a change must be
+    deliberate. Catches host-only bookkeeping counted as firmware work (the count of the model's NaN
+    log-likelihoods, done in NumPy's own arithmetic, added 10 compares and 10 integer operations)."""
+    assert _exact("ob1", 2, 10) == {"add": 314, "mul": 246, "div": 26, "div_scalar": 60, "cmp": 142, "exp": 20,
+                                    "log": 2, "cos": 2, "int": 80, "load": 470, "store": 230, "uniform": 2,
+                                    "normal": 20}
+
+
 def test_box_muller_normals_counted_as_draws():
     c = _exact("ob1", 2, 10)
     assert c["uniform"] == 2  # one systematic-resampling uniform per step

@@ -134,7 +134,7 @@ def test_run_warns_of_a_non_finite_log_likelihood_with_its_first_step(tmp_path):
     assert r.exit_code == 0, r.output
     non_finite, invalid = [ln for ln in r.stderr.splitlines() if ln.startswith("warning:")]
     assert "from step 3 on" in non_finite
-    assert "NaN or +inf for 60 particle(s) at 3 step(s), first at step 3" in invalid  # 20 particles, steps 3-5
+    assert "NaN or +inf 60 time(s) at 3 step(s), first at step 3" in invalid  # 20 particles, steps 3-5
     strict = CliRunner().invoke(main, ["--models", str(f), "run", "--model", "nanll", "--particles", "20",
                                        "--steps", "6", "--backend", "numpy", "--strict"])
     assert strict.exit_code == 2 and "error: the log-likelihood is -inf from step 3 on" in strict.stderr

@@ -96,6 +96,32 @@ class ZeroStartWrongAl(UserMixed):
         return fn, An, fl, -Al
 
 
+class WritesItsInput(UserMixed):
+    """UserMixed whose transition and observe overwrite their input after use (allowed: the
+    particle methods hand them copies)."""
+    name = "writes_its_input"
+
+    @staticmethod
+    def transition(x, u, t, noise, p):
+        out = UserMixed.transition(x, u, t, noise, p)
+        x[:] = 0.0
+        return out
+
+    @staticmethod
+    def observe(x, u, t, noise, p):
+        out = UserMixed.observe(x, u, t, noise, p)
+        x[:] = 0.0
+        return out
+
+
+class NoInitial(UserMixed):
+    name = "no_initial"
+
+    @staticmethod
+    def initial(rng, n, p):
+        return None
+
+
 class FlippedAl(LinearGaussian):
     name = "flipped_al"
 
@@ -129,7 +155,7 @@ def _check_at(model, states, u):
 def test_every_built_in_structure_agrees_with_its_model(model):
     """mpf runs every built-in structured model, and the check passes at states of a simulated run
     too.
-    Catches: a false refusal from a tolerance below rounding, x^n/x^l split unlike the MPF, or u not u[t]."""
+    Catches: a false refusal from a tolerance below rounding, or x^n/x^l split unlike the MPF."""
     assert supported(model)["mpf"]
     tr = model.simulate(10, seed=1)
     u = model.input_array(tr.u, 10)
@@ -186,3 +212,13 @@ def test_the_particle_methods_and_simulate_ignore_the_structure(model):
     tr = model.simulate(5, seed=0)
     res = pfbench.run_filter(model, tr.y, method="bootstrap", n_particles=20, backend="numpy")
     assert res.estimates.shape == (5, 2)
+
+
+def test_a_model_that_writes_its_input_agrees_and_a_missing_initial_is_named():
+    """A transition and observe that overwrite their input still agree with the structure (the
+    check hands each its own copy); an initial() returning None is the one-line shape error.
+    Catches the probe shared between calls, or a None indexed into (a TypeError traceback)."""
+    tr = UserMixed().simulate(5, seed=0)
+    pfbench.run_filter(WritesItsInput(), tr.y, method="mpf", n_particles=10, backend="numpy")
+    with pytest.raises(ModelError, match=r"^model 'no_initial': initial\(\) must return"):
+        pfbench.run_filter(NoInitial(), tr.y, method="mpf", n_particles=10, backend="numpy")

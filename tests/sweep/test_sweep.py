@@ -327,7 +327,7 @@ def test_a_sweep_says_where_the_model_returned_nan_log_likelihoods(tmp_path, log
                                       "--steps", "15", "--workers", "1", "--quiet", "--backend", "numpy",
                                       "--out", str(out), "--json"])
     assert r.exit_code == 0, r.output
-    assert json.loads(r.stdout)["invalid_loglik"] == 4
+    assert json.loads(r.stdout)["tasks_with_invalid_loglik"] == 4
     assert "warning: in 4 of 4 tasks the model's log_likelihood returned NaN or +inf" in r.stderr
     assert (Store.read(out).frame()["invalid_loglik"] > 0).all()
     out = tmp_path / "ob1.jsonl"
