@@ -530,7 +530,7 @@ def test_a_runs_provenance_names_its_inputs(tmp_path, readme_model_file):
     log = write_log(tmp_path / "log.csv", chamber.heating_normal(seed=1, duration_s=30))
     out = tmp_path / "r.csv"
     res = CliRunner().invoke(main, ["run", "--model", "thermal_inertial", "--data", str(log), "--particles", "50",
-                                    "--out", str(out)])
+                                    "--backend", "numpy", "--out", str(out)])
     assert res.exit_code == 0, res.output
     prov = json.loads((tmp_path / "r.csv.json").read_text())
     assert prov["data"] == str(log) and prov["data_sha256"] == file_hash(str(log))

@@ -67,7 +67,7 @@ def test_bad_model_file_is_one_line_input_error(tmp_path, content, why):
 
 def test_cli_runs_a_user_model_by_flag_and_by_environment(readme_model_file):
     path = readme_model_file("user_growth_b")
-    args = ("run", "--model", "user_growth_b", "--steps", "20", "--particles", "50", "--json")
+    args = ("run", "--model", "user_growth_b", "--steps", "20", "--particles", "50", "--backend", "numpy", "--json")
     by_flag = _cli("--models", str(path), *args)
     assert by_flag.returncode == 0, by_flag.stderr
     by_env = _cli(*args, env={models.MODELS_ENV: str(path)})
@@ -84,7 +84,7 @@ def test_sweep_workers_find_a_user_model(readme_model_file, tmp_path):
     path = readme_model_file("user_growth_c")
     out = tmp_path / "sweep.parquet"
     r = _cli("--models", str(path), "sweep", "--model", "user_growth_c", "--particles", "20,40",
-             "--runs", "2", "--steps", "10", "--out", str(out))
+             "--runs", "2", "--steps", "10", "--backend", "numpy", "--workers", "2", "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert "4/4 tasks" in r.stdout
 
