@@ -230,7 +230,7 @@ def test_run_warns_of_the_models_nan_log_likelihoods_and_strict_refuses(log_of_s
 
 
 def test_run_kalman_on_linear_gaussian():
-    out = _run_json("--model", "linear_gaussian", "--method", "kalman", "--steps", "40")
+    out = _run_json("--model", "linear_gaussian", "--method", "kalman", "--steps", "40", "--backend", "numpy")
     assert out["method"] == "kalman" and 0 < out["armse"] < 5 and out["ns_per_step"] > 0
     # no particles: no particle counts, no resampling scheme, no cost per particle
     assert not {"n_particles", "resampling", "estimate", "n_resampled", "ns_per_particle_step"} & set(out)

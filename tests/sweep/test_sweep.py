@@ -221,7 +221,8 @@ def test_summarize_cli(tmp_path):
     out = tmp_path / "s.parquet"
     r = CliRunner().invoke(main, ["sweep", "--model", "ob3:v2", "--particles", "20,40",
                                   "--filters", "1,2", "--method", "multipdf,mpf", "--runs", "3",
-                                  "--steps", "10", "--workers", "1", "--quiet", "--out", str(out)])
+                                  "--steps", "10", "--workers", "1", "--quiet", "--backend", "numpy",
+                                  "--out", str(out)])
     assert r.exit_code == 0, r.output
     assert out.is_file() and journal_path(out).is_file()
     r = CliRunner().invoke(main, ["sweep", "summarize", str(out), "--json"])
